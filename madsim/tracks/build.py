@@ -221,7 +221,10 @@ def build_pieces(root: Section) -> BuildResult:
     list_name = "Track Segments" if version >= 4 else "segments"
     seglist = main.sub(list_name)
     if seglist is None:
-        raise BuildError(f"no segment list 'Main Track/{list_name}' (reader version {version})",
+        other = "segments" if version >= 4 else "Track Segments"
+        hint = (f"; the file has 'Main Track/{other}', which the reader for Header version "
+                f"{'0-3' if other == 'segments' else '4'} uses" if main.sub(other) is not None else "")
+        raise BuildError(f"no segment list 'Main Track/{list_name}' (Header version {version}){hint}",
                          f"section 'Main Track/{list_name}'")
     w = main.num("width", 15.0)
     if not (w > 0 and math.isfinite(w)):

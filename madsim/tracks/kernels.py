@@ -113,3 +113,19 @@ def locate_many(px, py, geo, length, sx, sy, spiece, gx0, gy0, cell, nx, ny, cel
         out_s[k] = s
         out_n[k] = n
         out_piece[k] = i
+
+
+@numba.njit(cache=True)
+def locate_many_hinted(px, py, geo, length, hint_piece, out_s, out_n, out_piece):
+    """Locate each point by walking from a known piece (e.g. the car's previous piece), as TORCS
+    does every step; unambiguous where the track crosses itself (bridges)."""
+    for k in range(px.shape[0]):
+        i, q, n = locate_from(geo, hint_piece[k], px[k], py[k])
+        s = geo[i, GEO_S0] + q
+        if s >= length:
+            s -= length
+        elif s < 0.0:
+            s += length
+        out_s[k] = s
+        out_n[k] = n
+        out_piece[k] = i

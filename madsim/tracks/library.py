@@ -85,7 +85,7 @@ def load_track_xml(path: str | os.PathLike) -> Track:
                          element=exc.element) from None
     except BuildError as exc:
         raise TrackError(str(exc), file=str(path), element=exc.element) from None
-    return Track.from_build(built, source=str(path))
+    return Track.from_build(built, source=str(path), name=path.stem)
 
 
 def list_tracks() -> list[dict]:

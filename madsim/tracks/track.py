@@ -41,7 +41,8 @@ class Track:
     `surface_id` (road material index into `surfaces`), `piece` (piece index).
     """
 
-    name: str
+    name: str            # the id users type: the file's stem (e.g. "g-track-1")
+    title: str           # the Header name (e.g. "CG Speedway number 1")
     category: str
     version: int
     author: str
@@ -77,7 +78,7 @@ class Track:
     # --- construction -------------------------------------------------------------------
 
     @classmethod
-    def from_build(cls, b: BuildResult, source: str = "") -> "Track":
+    def from_build(cls, b: BuildResult, source: str = "", name: str | None = None) -> "Track":
         """Sample a built piece table into a Track (translated so min x, y, z >= 0 as TORCS)."""
         p = b.pieces.copy()
         w = b.width
@@ -108,7 +109,7 @@ class Track:
         grid = _build_grid(samples["x"], samples["y"], samples["piece"],
                            float(np.max(np.maximum(samples["barrier_left"], samples["barrier_right"]))))
         return cls(
-            name=b.name, category=b.category, version=b.version, author=b.author,
+            name=name or b.name, title=b.name, category=b.category, version=b.version, author=b.author,
             description=b.description, source=source, width=w, length=b.length,
             pieces=_readonly(p), piece_names=tuple(b.piece_names), surfaces=tuple(b.surfaces),
             side_bank_tangent=b.side_bank_tangent, grid=dict(b.grid), pits=dict(b.pits),
@@ -298,18 +299,27 @@ class Track:
         y = y + n * np.cos(a)
         return x, y, self.elevation(s, n), _wrap(a)
 
-    def locate(self, x, y):
+    def locate(self, x, y, s_hint=None):
         """(s, n) of global points: s in [0, L) = arc length of the projection on the centre
-        line, n = signed lateral offset (left positive). Exact on the piece geometry."""
+        line, n = signed lateral offset (left positive). Exact on the piece geometry.
+
+        Without `s_hint` the walk starts at the nearest centre-line sample (ambiguous only where
+        the track crosses itself in plan, e.g. wheel-2's bridge); with `s_hint` (a known nearby
+        distance, e.g. the car's previous s) it starts from that piece, as TORCS does.
+        """
         x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
         shape = x.shape
         px, py = np.ascontiguousarray(x.ravel()), np.ascontiguousarray(y.ravel())
         out_s = np.empty(px.shape[0])
         out_n = np.empty(px.shape[0])
         out_piece = np.empty(px.shape[0], dtype=np.int64)
-        g = self._grid
-        kernels.locate_many(px, py, self._geo, self.length, self.x, self.y, self.piece,
-                            g[0], g[1], g[2], g[3], g[4], g[5], g[6], out_s, out_n, out_piece)
+        if s_hint is not None:
+            hint = np.ascontiguousarray(np.broadcast_to(self.piece_at(s_hint), shape).ravel(), dtype=np.int64)
+            kernels.locate_many_hinted(px, py, self._geo, self.length, hint, out_s, out_n, out_piece)
+        else:
+            g = self._grid
+            kernels.locate_many(px, py, self._geo, self.length, self.x, self.y, self.piece,
+                                g[0], g[1], g[2], g[3], g[4], g[5], g[6], out_s, out_n, out_piece)
         return out_s.reshape(shape), out_n.reshape(shape)
 
 

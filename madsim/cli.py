@@ -1,0 +1,228 @@
+"""The `madsim` command line: tracks, cars, convert (more doors are added by later layers)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+class CliError(Exception):
+    """A user-facing failure: printed as one line, exit status 2."""
+
+
+# --- tracks -------------------------------------------------------------------------------
+
+
+def _track_summary(track) -> dict:
+    zmin, zmax = track.elevation_range
+    return {
+        "name": track.name, "title": track.title, "category": track.category, "length": track.length,
+        "width": track.width, "closure_gap": track.closure_gap,
+        "closure_heading_gap_deg": float(__import__("math").degrees(track.closure_heading_gap)),
+        "segments": track.n_segments, "pieces": track.n_pieces,
+        "elevation_min": zmin, "elevation_max": zmax, "bounding_box": list(track.bounding_box),
+        "version": track.version, "source": track.source,
+    }
+
+
+def cmd_tracks_list(args) -> int:
+    from madsim.tracks import list_tracks, load_track
+
+    rows = []
+    for entry in list_tracks():
+        try:
+            t = load_track(entry["path"])
+            rows.append({**entry, "category": t.category, "length": t.length, "width": t.width})
+        except ValueError as exc:
+            rows.append({**entry, "category": "?", "length": None, "width": None, "error": str(exc)})
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    print(f"{'name':16s} {'category':8s} {'length (m)':>11s} {'width (m)':>9s}  source")
+    for r in rows:
+        length = f"{r['length']:11.2f}" if r["length"] is not None else f"{'error':>11s}"
+        width = f"{r['width']:9g}" if r["width"] is not None else f"{'':9s}"
+        print(f"{r['name']:16s} {r['category']:8s} {length} {width}  {r['source']}")
+    return 0
+
+
+def cmd_tracks_info(args) -> int:
+    from madsim.tracks import load_track
+
+    info = _track_summary(load_track(args.track))
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    for k, v in info.items():
+        if isinstance(v, float):
+            v = f"{v:.4f}" if "gap" in k else f"{v:.2f}"
+        elif isinstance(v, list):
+            v = ", ".join(f"{x:.1f}" for x in v)
+        print(f"{k:24s} {v}")
+    return 0
+
+
+def cmd_tracks_show(args) -> int:
+    from madsim.render.trackmap import save_track_map
+    from madsim.tracks import load_track
+
+    track = load_track(args.track)
+    save_track_map(track, args.output, marks_every_m=args.marks)
+    print(f"wrote {args.output} ({track.name}, {track.length:.2f} m)")
+    return 0
+
+
+def cmd_tracks_generate(args) -> int:
+    from madsim.tracks.generate import generate_track_xml
+
+    try:
+        text = generate_track_xml(args.seed, length_m=args.length, width_m=args.width, name=args.name)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    Path(args.output).write_text(text, encoding="utf-8")
+    print(f"wrote {args.output}")
+    return 0
+
+
+# --- convert ------------------------------------------------------------------------------
+
+
+def cmd_convert_track(args) -> int:
+    from madsim.tracks import load_track
+    from madsim.tracks.compiled import save_compiled, track_to_xml
+    from madsim.tracks.library import COMPILED_SUFFIX
+
+    track = load_track(args.input)
+    out = Path(args.output)
+    if out.suffix == COMPILED_SUFFIX:
+        save_compiled(track, out)
+    elif out.suffix == ".xml":
+        out.write_text(track_to_xml(track), encoding="utf-8")
+    else:
+        raise CliError(f"output must end in {COMPILED_SUFFIX} (compiled) or .xml (TORCS XML), got '{out.name}'")
+    print(f"wrote {out} ({track.name}, {track.length:.2f} m, {track.n_pieces} pieces)")
+    return 0
+
+
+def cmd_convert_car(args) -> int:
+    from madsim.cars import load_car
+    from madsim.cars.catalog import car_to_json, car_to_xml
+
+    spec = load_car(args.input)
+    out = Path(args.output)
+    if out.suffix == ".json":
+        out.write_text(car_to_json(spec), encoding="utf-8")
+    elif out.suffix == ".xml":
+        out.write_text(car_to_xml(spec), encoding="utf-8")
+    else:
+        raise CliError(f"output must end in .json (compiled) or .xml (TORCS XML), got '{out.name}'")
+    print(f"wrote {out} ({spec.name})")
+    return 0
+
+
+# --- cars ---------------------------------------------------------------------------------
+
+
+def cmd_cars_list(args) -> int:
+    from madsim.cars.catalog import list_cars
+
+    rows = list_cars()
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    print(f"{'name':16s} {'category':16s} {'drive':5s} {'mass (kg)':>9s} {'power (kW)':>10s}  source")
+    for r in rows:
+        print(f"{r['name']:16s} {str(r.get('category', '')):16s} {str(r.get('drive', '')):5s} "
+              f"{r.get('mass', float('nan')):9.0f} {r.get('power_kw', float('nan')):10.0f}  {r.get('source', '')}")
+    return 0
+
+
+def cmd_cars_info(args) -> int:
+    from madsim.cars.catalog import car_info
+
+    info = car_info(args.car)
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    for k, v in info.items():
+        print(f"{k:24s} {v}")
+    return 0
+
+
+# --- parser -------------------------------------------------------------------------------
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from madsim import __version__
+
+    p = argparse.ArgumentParser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
+    p.add_argument("--version", action="version", version=f"madsim {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
+    tsub = tracks.add_subparsers(dest="tracks_command", required=True)
+    t = tsub.add_parser("list", help="bundled and installed TORCS tracks")
+    t.add_argument("--json", action="store_true")
+    t.set_defaults(func=cmd_tracks_list)
+    t = tsub.add_parser("info", help="facts about one track")
+    t.add_argument("track", help="track name or path")
+    t.add_argument("--json", action="store_true")
+    t.set_defaults(func=cmd_tracks_info)
+    t = tsub.add_parser("show", help="draw a track map")
+    t.add_argument("track", help="track name or path")
+    t.add_argument("-o", "--output", required=True, help="image file (e.g. map.png)")
+    t.add_argument("--marks", type=float, default=500.0, help="distance marks every M metres (0: none)")
+    t.set_defaults(func=cmd_tracks_show)
+    t = tsub.add_parser("generate", help="write a random closed track as TORCS XML")
+    t.add_argument("--seed", type=int, required=True)
+    t.add_argument("--length", type=float, default=3000.0, help="approximate length, m")
+    t.add_argument("--width", type=float, default=12.0, help="road width, m")
+    t.add_argument("--name", default=None)
+    t.add_argument("-o", "--output", required=True)
+    t.set_defaults(func=cmd_tracks_generate)
+
+    cars = sub.add_parser("cars", help="list and inspect cars")
+    csub = cars.add_subparsers(dest="cars_command", required=True)
+    c = csub.add_parser("list", help="bundled and installed TORCS cars")
+    c.add_argument("--json", action="store_true")
+    c.set_defaults(func=cmd_cars_list)
+    c = csub.add_parser("info", help="facts about one car")
+    c.add_argument("car", help="car name or path")
+    c.add_argument("--json", action="store_true")
+    c.set_defaults(func=cmd_cars_info)
+
+    conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
+    vsub = conv.add_subparsers(dest="convert_command", required=True)
+    v = vsub.add_parser("track", help="TORCS XML <-> compiled .mtrack")
+    v.add_argument("input")
+    v.add_argument("-o", "--output", required=True)
+    v.set_defaults(func=cmd_convert_track)
+    v = vsub.add_parser("car", help="TORCS car XML <-> compiled .json")
+    v.add_argument("input")
+    v.add_argument("-o", "--output", required=True)
+    v.set_defaults(func=cmd_convert_car)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CliError as exc:
+        print(f"madsim: error: {exc}", file=sys.stderr)
+        return 2
+    except (ValueError, OSError) as exc:  # TrackError, CarError, ConfigError are ValueErrors
+        print(f"madsim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:  # e.g. `madsim tracks list | head`
+        sys.stderr.close()
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
