@@ -58,7 +58,8 @@ def save_track_map(track: Track, path: str | os.PathLike, *, marks_every_m: floa
     plt = _figure()
     fig, ax = plt.subplots(figsize=(8, 8))
     draw_track(ax, track, marks_every_m=marks_every_m)
-    ax.set_title(f"{track.title} [{track.name}] ({track.category}) - {track.length:.2f} m, width {track.width:g} m")
+    label = track.name if track.title in ("", track.name) else f"{track.title} [{track.name}]"
+    ax.set_title(f"{label} ({track.category}) - {track.length:.2f} m, width {track.width:g} m")
     fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
