@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from madsim.tracks import kernels
+from madsim.tracks import kernels, rays
 from madsim.tracks.build import COL, LEFT, RIGHT, STRAIGHT, BuildResult, Surface
 
 SAMPLE_SPACING_M = 1.0
@@ -74,6 +74,8 @@ class Track:
     piece: np.ndarray = field(repr=False)
     _geo: np.ndarray = field(repr=False)
     _grid: tuple = field(repr=False)
+    runs: np.ndarray = field(repr=False)          # (R, rays.RUN_COLS) merged pieces, for rays
+    piece_run: np.ndarray = field(repr=False)     # (P,) piece index -> run index
 
     # --- construction -------------------------------------------------------------------
 
@@ -124,6 +126,7 @@ class Track:
             barrier_right=_readonly(samples["barrier_right"]),
             surface_id=_readonly(samples["surface_id"]), piece=_readonly(samples["piece"]),
             _geo=_readonly(geo), _grid=grid,
+            **dict(zip(("runs", "piece_run"), map(_readonly, rays.build_runs(p)))),
         )
 
     # --- facts --------------------------------------------------------------------------
@@ -298,6 +301,19 @@ class Track:
         x = x - n * np.sin(a)
         y = y + n * np.cos(a)
         return x, y, self.elevation(s, n), _wrap(a)
+
+    def rangefinders(self, x, y, yaw, angles_deg, *, s_hint=None, max_range_m: float = 200.0) -> np.ndarray:
+        """(N, A) distances from points (x, y) along yaw - angle (SCR angles: degrees, positive
+        clockwise) to the first crossing of a road edge, capped at max_range_m. Exact (lines and
+        circles). Points must be on the road; the SCR -1 sentinel is the sensor layer's job."""
+        x, y, yaw = (np.atleast_1d(np.asarray(v, dtype=np.float64)) for v in (x, y, yaw))
+        s, _ = self.locate(x, y, s_hint=s_hint)
+        angles = np.radians(np.asarray(angles_deg, dtype=np.float64))
+        out = np.empty((x.shape[0], angles.shape[0]))
+        rays.rangefinders(self.runs, self.width / 2, self.piece_run[self.piece_at(s)],
+                          np.ascontiguousarray(x), np.ascontiguousarray(y), np.ascontiguousarray(yaw),
+                          angles, max_range_m, out)
+        return out
 
     def locate(self, x, y, s_hint=None):
         """(s, n) of global points: s in [0, L) = arc length of the projection on the centre
