@@ -343,10 +343,10 @@ class Track:
 
 
 def _piece_end(row: np.ndarray) -> tuple[float, float, float]:
-    kind, l, r = row[COL["kind"]], row[COL["length"]], row[COL["radius"]]
+    kind, length, r = row[COL["kind"]], row[COL["length"]], row[COL["radius"]]
     a0, x0, y0 = row[COL["a0"]], row[COL["x0"]], row[COL["y0"]]
     if kind == STRAIGHT:
-        return x0 + l * math.cos(a0), y0 + l * math.sin(a0), a0
+        return x0 + length * math.cos(a0), y0 + length * math.sin(a0), a0
     d = row[COL["arc"]]
     cx, cy = row[COL["cx"]], row[COL["cy"]]
     if kind == LEFT:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import numpy as np
+
 TORCS_ROOT = Path("/usr/share/games/torcs")
 REFERENCE_CSV = Path(__file__).parent.parent / "tracks" / "data" / "torcs_trackgen_reference.csv"
 
@@ -57,3 +59,31 @@ def track_xml(segments: list[str], *, width: float = 10.0, version: int = 4, mai
             f'<section name="Main Track"><attnum name="width" unit="m" val="{width}"/>{main_extra}\n'
             f'<section name="{seglist}">\n' + "\n".join(segments) + "\n</section></section>\n</params>\n")
 
+
+
+def polyline_crossings(polylines: list[np.ndarray], block: int = 256) -> int:
+    """Pairs of non-adjacent segments of the closed polylines (each (K, 2)) that cross properly."""
+    a = np.concatenate(polylines)
+    b = np.concatenate([np.roll(p, -1, axis=0) for p in polylines])
+    owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(polylines)])
+    index = np.concatenate([np.arange(len(p)) for p in polylines])
+    size = np.array([len(p) for p in polylines])[owner]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+
+    def side(p, q, r):
+        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+
+    count = 0
+    j = np.arange(len(a))[None, :]
+    for start in range(0, len(a), block):
+        i = np.arange(start, min(start + block, len(a)))[:, None]
+        gap = np.abs(index[i] - index[j])
+        adjacent = (owner[i] == owner[j]) & ((gap <= 1) | (gap == size[i] - 1))
+        boxes = ((lo[i, 0] <= hi[j, 0]) & (lo[j, 0] <= hi[i, 0])
+                 & (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1]))
+        ii, jj = np.nonzero(boxes & ~adjacent & (j > i))
+        ii, jj = ii + start, jj
+        proper = ((side(a[ii], b[ii], a[jj]) * side(a[ii], b[ii], b[jj]) < 0)
+                  & (side(a[jj], b[jj], a[ii]) * side(a[jj], b[jj], b[ii]) < 0))
+        count += int(proper.sum())
+    return count
