@@ -211,6 +211,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:  # e.g. `madsim tracks list | head`
+        sys.stderr.close()
+        return 0
     except CliError as exc:
         print(f"madsim: error: {exc}", file=sys.stderr)
         return 2
@@ -219,9 +222,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
-    except BrokenPipeError:  # e.g. `madsim tracks list | head`
-        sys.stderr.close()
-        return 0
 
 
 if __name__ == "__main__":

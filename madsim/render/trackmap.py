@@ -41,7 +41,7 @@ def draw_track(ax, track: Track, *, marks_every_m: float = 500.0, label: bool = 
     if label:
         ax.text(x0, y0, "  start", fontsize=8, ha="left", va="bottom", zorder=5)
     if marks_every_m > 0:
-        for d in np.arange(marks_every_m, track.length, marks_every_m):
+        for d in np.arange(marks_every_m, track.length - 0.1 * marks_every_m, marks_every_m):
             x, y, _, h = (float(v) for v in track.pose(d, 0.0))
             off = track.width * 1.5
             ax.plot([x], [y], marker="o", ms=2.5, color="#1f6feb", zorder=4)
