@@ -151,6 +151,64 @@ def cmd_cars_info(args) -> int:
     return 0
 
 
+# --- serve / drive --------------------------------------------------------------------------
+
+
+def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fuel: bool = False,
+                       damage: bool = True):
+    """A function seed -> World on the starting grid (cars repeat the last name if short)."""
+    import numpy as np
+
+    from madsim.cars import load_car
+    from madsim.physics.world import World
+    from madsim.tracks import load_track
+
+    track = load_track(track_name)
+    specs = [load_car(n) for n in car_names]
+    specs += [specs[-1]] * (n_cars - len(specs))
+
+    def make(seed: int):
+        world = World(track, specs[:n_cars], np.random.default_rng(seed), fuel=fuel, damage=damage)
+        world.reset()
+        return world
+    return make
+
+
+def cmd_serve(args) -> int:
+    import signal
+
+    from madsim.net.server import ScrServer, ServerError
+
+    cars = [c for c in args.cars.split(",") if c]
+    make = make_world_factory(args.track, cars, args.clients, fuel=not args.nofuel, damage=not args.nodamage)
+    server = ScrServer(make, args.clients, host=args.host, port=args.port, mode=args.mode,
+                       timeout_ms=args.timeout_ms, noisy=args.noisy, identified_reply=args.identified_reply,
+                       seed=args.seed, laps=args.laps, max_ticks=args.max_ticks, countdown_ticks=args.countdown,
+                       start_timeout_s=args.start_timeout, client_deadline_s=args.client_deadline,
+                       log=lambda m: print(f"madsim serve: {m}", flush=True), log_csv=args.log_csv)
+    signal.signal(signal.SIGTERM, lambda *_: server.stop())
+    try:
+        server.open()
+    except ServerError as exc:
+        raise CliError(str(exc)) from None
+    print(f"madsim serve: {args.track}, {args.clients} car(s), mode {args.mode}, "
+          f"ports {args.port}..{args.port + args.clients - 1} on {args.host}", flush=True)
+    try:
+        server.serve()
+    except ServerError as exc:
+        raise CliError(str(exc)) from None
+    return 0
+
+
+def cmd_drive(args) -> int:
+    from madsim.net.client import ScrClient, simple_driver
+
+    client = ScrClient(host=args.host, port=args.port, client_id=args.id)
+    outcome, steps = client.run(simple_driver, max_steps=args.max_steps)
+    print(f"madsim drive: {outcome} after {steps} steps")
+    return 0
+
+
 # --- parser -------------------------------------------------------------------------------
 
 
@@ -192,6 +250,36 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("car", help="car name or path")
     c.add_argument("--json", action="store_true")
     c.set_defaults(func=cmd_cars_info)
+
+    sv = sub.add_parser("serve", help="a drop-in TORCS scr_server on UDP")
+    sv.add_argument("--track", default="madsim-road")
+    sv.add_argument("--cars", default="madsim-sedan", help="comma-separated car names, one per client")
+    sv.add_argument("--clients", type=int, default=1)
+    sv.add_argument("--host", default="127.0.0.1")
+    sv.add_argument("--port", type=int, default=3001)
+    sv.add_argument("--laps", type=int, default=None)
+    sv.add_argument("--mode", choices=["sync", "timeout", "realtime"], default="sync")
+    sv.add_argument("--timeout-ms", type=float, default=10.0)
+    sv.add_argument("--noisy", action="store_true", help="SCR sensor noise (as torcs -noisy)")
+    sv.add_argument("--identified-reply", choices=["plain", "pid"], default="plain",
+                    help="'pid' answers ***identified***:<pid> as MADRaS' snakeoil expects")
+    sv.add_argument("--seed", type=int, default=0)
+    sv.add_argument("--max-ticks", type=int, default=None)
+    sv.add_argument("--countdown", type=int, default=49, help="frozen ticks before the start (TORCS: 49)")
+    sv.add_argument("--start-timeout", type=float, default=None, help="give up if clients do not come (s)")
+    sv.add_argument("--client-deadline", type=float, default=5.0,
+                    help="sync mode: seconds of silence before a client is treated as in timeout mode")
+    sv.add_argument("--nofuel", action="store_true")
+    sv.add_argument("--nodamage", action="store_true")
+    sv.add_argument("--log-csv", default=None, help="write a per-tick trace to this CSV file")
+    sv.set_defaults(func=cmd_serve)
+
+    dv = sub.add_parser("drive", help="drive one car of a scr_server with the built-in simple driver")
+    dv.add_argument("--host", default="127.0.0.1")
+    dv.add_argument("--port", type=int, default=3001)
+    dv.add_argument("--id", default="SCR")
+    dv.add_argument("--max-steps", type=int, default=None)
+    dv.set_defaults(func=cmd_drive)
 
     conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
     vsub = conv.add_subparsers(dest="convert_command", required=True)

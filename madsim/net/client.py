@@ -216,9 +216,11 @@ def simple_driver(state: Mapping[str, Any], target_speed_kmh: float = 100.0) -> 
     """A minimal driver: steer to the track axis, hold a target speed, shift by rpm.
 
     Steer = (angle - 0.5 trackPos) / steer lock (angle > 0: car points right of the track, so
-    steer left = positive; trackPos > 0: car left of centre, so steer right). Throttle is
-    proportional to the speed error, brake above target + 10 km/h; up-shift at the C++
-    SimpleDriver's rpm thresholds, down-shift below 3000 (rpm field = rad/s x 10).
+    steer left = positive; trackPos > 0: car left of centre, so steer right). The speed target
+    drops before bends: the longest of the three forward rangefinders gives the free road d
+    ahead and the target is capped at sqrt(2 a d) with a = 5 m/s^2 (a safe braking rate), but
+    not below 30 km/h. Throttle is proportional to the speed error, brake above target + 5 km/h;
+    up-shift at the C++ SimpleDriver's rpm thresholds, down-shift below 3000 (rpm = rad/s x 10).
     """
     angle = float(state["angle"])
     track_pos = float(state["trackPos"])
@@ -227,9 +229,13 @@ def simple_driver(state: Mapping[str, Any], target_speed_kmh: float = 100.0) -> 
     gear = int(state["gear"])
     steer = (angle - 0.5 * track_pos) / STEER_LOCK_RAD
     steer = max(-1.0, min(1.0, steer)) if math.isfinite(steer) else 0.0
+    rays = state.get("track")
+    if rays is not None and len(rays) == 19 and min(rays) >= 0:
+        ahead = max(float(rays[8]), float(rays[9]), float(rays[10]))
+        target_speed_kmh = min(target_speed_kmh, max(30.0, 3.6 * math.sqrt(2.0 * 5.0 * ahead)))
     error = target_speed_kmh - speed
     accel = max(0.0, min(1.0, error / 20.0 + 0.2)) if error > 0 else 0.0
-    brake = max(0.0, min(1.0, (-error - 10.0) / 30.0)) if error < -10.0 else 0.0
+    brake = max(0.0, min(1.0, (-error - 5.0) / 20.0)) if error < -5.0 else 0.0
     if gear < 1:
         gear = 1
     elif gear < 6 and rpm > _GEAR_UP_RPM_X10[gear - 1]:
