@@ -8,10 +8,12 @@ source of truth for sensor semantics; the wire format lives in `madsim.net.proto
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+
+from madsim.physics import layout as L
+from madsim.tracks.rays import cast_ray
 
 SCR_DEFAULT_ANGLES_DEG = (-90.0, -75.0, -60.0, -45.0, -30.0, -20.0, -15.0, -10.0, -5.0, 0.0,
                           5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0)
@@ -22,44 +24,63 @@ NOISE_STD = {"track": 0.1, "opponents": 0.02, "focus": 0.01}   # multiplicative 
 MS_TO_KMH = 3.6
 
 
-@dataclass
-class SensorFrame:
-    """Every SCR sensor for N cars. Scalars are (N,) arrays; track (N, 19), opponents (N, 36),
-    focus (N, 5), wheelSpinVel (N, 4) in TORCS wheel order FR, FL, RR, RL."""
+# Wire order and widths (spec section 5); a frame's `flat` array holds the 79 values per car.
+SENSOR_WIDTHS = (("angle", 1), ("curLapTime", 1), ("damage", 1), ("distFromStart", 1), ("distRaced", 1),
+                 ("fuel", 1), ("gear", 1), ("lastLapTime", 1), ("opponents", 36), ("racePos", 1),
+                 ("rpm", 1), ("speedX", 1), ("speedY", 1), ("speedZ", 1), ("track", 19), ("trackPos", 1),
+                 ("wheelSpinVel", 4), ("z", 1), ("focus", 5))
+SENSOR_OFFSETS = {}
+_o = 0
+for _name, _w in SENSOR_WIDTHS:
+    SENSOR_OFFSETS[_name] = (_o, _w)
+    _o += _w
+N_VALUES = _o  # 79
+(O_ANGLE, O_CURLAP, O_DAMAGE, O_DFS, O_DRACED, O_FUEL, O_GEAR, O_LASTLAP, O_OPP, O_RACEPOS, O_RPM,
+ O_SX, O_SY, O_SZ, O_TRACK, O_TPOS, O_WSPIN, O_Z, O_FOCUS) = (SENSOR_OFFSETS[n][0] for n, _ in SENSOR_WIDTHS)
 
-    angle: np.ndarray
-    curLapTime: np.ndarray
-    damage: np.ndarray
-    distFromStart: np.ndarray
-    distRaced: np.ndarray
-    fuel: np.ndarray
-    gear: np.ndarray
-    lastLapTime: np.ndarray
-    opponents: np.ndarray
-    racePos: np.ndarray
-    rpm: np.ndarray
-    speedX: np.ndarray
-    speedY: np.ndarray
-    speedZ: np.ndarray
-    track: np.ndarray
-    trackPos: np.ndarray
-    wheelSpinVel: np.ndarray
-    z: np.ndarray
-    focus: np.ndarray
-    cars: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # world rows
+SENSOR_ORDER = tuple(name for name, _ in SENSOR_WIDTHS)
+INT_FIELDS = ("damage", "gear", "racePos")
+
+
+class SensorFrame:
+    """Every SCR sensor for N cars, backed by one (N, 79) float64 array in wire order.
+
+    Fields are read as attributes with the SCR names: scalars are (N,) views, `track` (N, 19),
+    `opponents` (N, 36), `focus` (N, 5), `wheelSpinVel` (N, 4) in TORCS wheel order FR, FL, RR,
+    RL; the int fields (damage, gear, racePos) come as int64 copies. `cars` = the World rows.
+    """
+
+    __slots__ = ("flat", "cars")
+
+    def __init__(self, flat: np.ndarray, cars: np.ndarray):
+        self.flat = flat
+        self.cars = cars
+
+    @classmethod
+    def from_flat(cls, flat: np.ndarray, cars: np.ndarray) -> "SensorFrame":
+        return cls(flat, cars)
+
+    def __getattr__(self, name: str):
+        try:
+            o, w = SENSOR_OFFSETS[name]
+        except KeyError:
+            raise AttributeError(name) from None
+        v = self.flat[:, o] if w == 1 else self.flat[:, o:o + w]
+        return v.astype(np.int64) if name in INT_FIELDS else v
+
+    def __len__(self) -> int:
+        return self.flat.shape[0]
 
     def row(self, k: int) -> dict:
-        """One car's sensors as a dict of floats / lists (the codec's input)."""
+        """One car's sensors as a dict of Python numbers / lists (SCR names)."""
+        r = self.flat[k]
         out = {}
-        for name in SENSOR_ORDER:
-            v = getattr(self, name)[k]
-            out[name] = v.tolist() if np.ndim(v) else v.item()
+        for name, (o, w) in SENSOR_OFFSETS.items():
+            if w == 1:
+                out[name] = int(r[o]) if name in INT_FIELDS else float(r[o])
+            else:
+                out[name] = r[o:o + w].tolist()
         return out
-
-
-SENSOR_ORDER = ("angle", "curLapTime", "damage", "distFromStart", "distRaced", "fuel", "gear",
-                "lastLapTime", "opponents", "racePos", "rpm", "speedX", "speedY", "speedZ", "track",
-                "trackPos", "wheelSpinVel", "z", "focus")
 
 
 @numba.njit(cache=True)
@@ -91,6 +112,58 @@ def opponents_kernel(idx, x, y, yaw, active, max_range, out):
                 out[k, sector] = d
 
 
+@numba.njit(cache=True)
+def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_pos, dist_origin,
+                  active, max_range, out):
+    """out[k] = the 79 wire-order SCR values of car cars[k] (focus left at -1, no noise) from the
+    World state `st` (layout.STATE_COLUMNS): units converted, rangefinders cast exactly (-1 off
+    the road), opponents by sector. One pass, no allocation."""
+    opp = np.empty((1, 36))
+    one = np.empty(1, dtype=np.int64)
+    for k in range(cars.shape[0]):
+        i = cars[k]
+        row = out[k]
+        a = st[i, L.S_THEAD] - st[i, L.S_YAW]
+        a = a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+        if a == -math.pi:
+            a = math.pi
+        row[O_ANGLE] = a
+        row[O_CURLAP] = st[i, L.S_CURLAP]
+        row[O_DAMAGE] = math.floor(st[i, L.S_DAMAGE])
+        row[O_DFS] = st[i, L.S_S]
+        row[O_DRACED] = st[i, L.S_DIST] - dist_origin[i]
+        row[O_FUEL] = st[i, L.S_FUEL]
+        row[O_GEAR] = st[i, L.S_GEAR]
+        row[O_LASTLAP] = st[i, L.S_LASTLAP]
+        one[0] = i
+        opponents_kernel(one, st[:, L.S_X], st[:, L.S_Y], st[:, L.S_YAW], active, max_range, opp)
+        for j in range(36):
+            row[O_OPP + j] = opp[0, j]
+        row[O_RACEPOS] = race_pos[i]
+        row[O_RPM] = st[i, L.S_WE] * 10.0
+        row[O_SX] = st[i, L.S_VX] * MS_TO_KMH
+        row[O_SY] = st[i, L.S_VY] * MS_TO_KMH
+        row[O_SZ] = (st[i, L.S_GX] * st[i, L.S_VXG] + st[i, L.S_GY] * st[i, L.S_VYG]) * MS_TO_KMH
+        tpos = st[i, L.S_N] / half_width
+        row[O_TPOS] = tpos
+        if abs(tpos) <= 1.0:
+            run = piece_run[int(st[i, L.S_PIECE])]
+            x, y, yaw = st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW]
+            for j in range(19):
+                h = yaw - math.radians(angles_deg[i, j])
+                row[O_TRACK + j] = cast_ray(runs, half_width, run, x, y, math.cos(h), math.sin(h), max_range)
+        else:
+            for j in range(19):
+                row[O_TRACK + j] = -1.0
+        row[O_WSPIN] = st[i, L.S_WF]
+        row[O_WSPIN + 1] = st[i, L.S_WF]
+        row[O_WSPIN + 2] = st[i, L.S_WR]
+        row[O_WSPIN + 3] = st[i, L.S_WR]
+        row[O_Z] = st[i, L.S_Z] - st[i, L.S_ROADZ]
+        for j in range(5):
+            row[O_FOCUS + j] = -1.0
+
+
 def wrap_angle(a):
     """Wrap radians to (-pi, pi]."""
     a = np.asarray(a, dtype=np.float64)
@@ -116,6 +189,7 @@ class FocusState:
     def __init__(self, n: int):
         self.requested_deg = np.zeros(n)          # a client that never asks gets focus 0
         self.next_allowed_s = np.zeros(n)
+        self.earliest_s = 0.0                      # min over cars of next_allowed_s
 
     def request(self, cars: np.ndarray, focus_deg: np.ndarray) -> None:
         """Store the focus requests of this tick's control messages (used for the next state)."""
@@ -126,6 +200,7 @@ class FocusState:
         """Which of `cars` get a valid reading now; advances their cooldown."""
         ok = on_track & (self.requested_deg[cars] != FOCUS_NONE) & (race_time_s >= self.next_allowed_s[cars])
         self.next_allowed_s[cars[ok]] = race_time_s[ok] + FOCUS_COOLDOWN_S
+        self.earliest_s = float(self.next_allowed_s.min())
         return ok
 
 
@@ -144,11 +219,12 @@ class SensorSuite:
         self.angles_deg = np.tile(np.asarray(SCR_DEFAULT_ANGLES_DEG), (n, 1))
         self.focus = FocusState(n)
         self.dist_origin = np.zeros(n)
+        self._all = np.arange(n, dtype=np.int64)
         self.reset()
 
     def reset(self) -> None:
         """Call after `world.reset()`: distRaced restarts from 0, focus cooldowns clear."""
-        self.dist_origin = np.array(self.world.column("dist_raced"), dtype=np.float64)
+        self.dist_origin = np.array(self.world.state[:, L.S_DIST], dtype=np.float64)
         self.focus = FocusState(self.world.n_cars)
 
     def set_angles(self, car: int, angles_deg) -> None:
@@ -166,60 +242,21 @@ class SensorSuite:
         """Sensors of `cars` (default: all) at the world's current state, in SCR units."""
         w = self.world
         track = w.track
-        cars = np.arange(w.n_cars) if cars is None else np.atleast_1d(np.asarray(cars, dtype=np.int64))
-        col = w.column
-        x, y, yaw = col("x")[cars], col("y")[cars], col("yaw")[cars]
-        s, n = col("s")[cars], col("n")[cars]
-        half = track.width / 2
-        track_pos = n / half
-        on_road = np.abs(track_pos) <= 1.0
-        k = len(cars)
-
-        rays = np.full((k, 19), -1.0)
-        if on_road.any():
-            idx = np.nonzero(on_road)[0]
-            for group in _groups_by_angles(self.angles_deg[cars[idx]]):
-                sel = idx[group]
-                rays[sel] = track.rangefinders(x[sel], y[sel], yaw[sel], self.angles_deg[cars[sel[0]]],
-                                               s_hint=s[sel], max_range_m=SENSOR_RANGE_M)
-
-        focus = np.full((k, 5), -1.0)
-        race_time = col("time")[cars]
-        due = self.focus.due(cars, race_time, on_road)
-        for j in np.nonzero(due)[0]:
-            centre = self.focus.requested_deg[cars[j]]
-            focus[j] = track.rangefinders(x[j:j + 1], y[j:j + 1], yaw[j:j + 1], centre + np.arange(-2.0, 3.0),
-                                          s_hint=s[j:j + 1], max_range_m=SENSOR_RANGE_M)[0]
-
-        opponents = np.empty((k, 36))
-        opponents_kernel(cars, np.ascontiguousarray(col("x")), np.ascontiguousarray(col("y")),
-                         np.ascontiguousarray(col("yaw")), _active(w),
-                         SENSOR_RANGE_M, opponents)
-
-        vxg, vyg = col("vx_g")[cars], col("vy_g")[cars]
-        speed_z = col("grad_x")[cars] * vxg + col("grad_y")[cars] * vyg   # z follows the road
-        frame = SensorFrame(
-            angle=wrap_angle(col("track_heading")[cars] - yaw),
-            curLapTime=col("cur_lap_time")[cars].copy(),
-            damage=np.floor(col("damage")[cars]).astype(np.int64),
-            distFromStart=s.copy(),
-            distRaced=col("dist_raced")[cars] - self.dist_origin[cars],
-            fuel=col("fuel")[cars].copy(),
-            gear=col("gear")[cars].astype(np.int64),
-            lastLapTime=col("last_lap_time")[cars].copy(),
-            opponents=opponents,
-            racePos=np.asarray(w.race_pos)[cars].astype(np.int64),
-            rpm=col("engine_speed")[cars] * 10.0,
-            speedX=col("vx")[cars] * MS_TO_KMH,
-            speedY=col("vy")[cars] * MS_TO_KMH,
-            speedZ=speed_z * MS_TO_KMH,
-            track=rays,
-            trackPos=track_pos,
-            wheelSpinVel=np.asarray(w.wheel_spin)[cars].copy(),
-            z=col("z")[cars] - col("road_z")[cars],
-            focus=focus,
-            cars=cars,
-        )
+        cars = self._all if cars is None else np.atleast_1d(np.asarray(cars, dtype=np.int64))
+        flat = np.empty((cars.shape[0], N_VALUES))
+        sensor_kernel(cars, w.state, track.geo, track.runs, track.piece_run, track.width / 2,
+                      self.angles_deg, w.race_pos, self.dist_origin, _active(w), SENSOR_RANGE_M, flat)
+        st = w.state
+        due = ()
+        if st.shape[0] and st[0, L.S_TIME] >= self.focus.earliest_s:   # one clock for all cars
+            due = np.nonzero(self.focus.due(cars, st[cars, L.S_TIME], np.abs(flat[:, O_TPOS]) <= 1.0))[0]
+        for j in due:
+            i = cars[j]
+            centre = self.focus.requested_deg[i]
+            flat[j, O_FOCUS:O_FOCUS + 5] = track.rangefinders(
+                st[i:i + 1, L.S_X], st[i:i + 1, L.S_Y], st[i:i + 1, L.S_YAW], centre + np.arange(-2.0, 3.0),
+                s_hint=st[i:i + 1, L.S_S], max_range_m=SENSOR_RANGE_M)[0]
+        frame = SensorFrame.from_flat(flat, cars)
         if self.noisy:
             apply_noise(frame, self.rng)
         return frame
@@ -230,10 +267,3 @@ def _active(world) -> np.ndarray:
     active = getattr(world, "active", None)
     return np.ones(world.n_cars, dtype=np.bool_) if active is None else np.asarray(active, dtype=np.bool_)
 
-
-def _groups_by_angles(angles: np.ndarray) -> list[np.ndarray]:
-    """Row indices grouped by identical angle sets (almost always one group)."""
-    if len(angles) <= 1 or np.all(angles == angles[0]):
-        return [np.arange(len(angles))]
-    _, inverse = np.unique(angles, axis=0, return_inverse=True)
-    return [np.nonzero(inverse.ravel() == g)[0] for g in range(inverse.max() + 1)]
