@@ -151,6 +151,23 @@ def cmd_cars_info(args) -> int:
     return 0
 
 
+# --- config -------------------------------------------------------------------------------
+
+
+def cmd_config_check(args) -> int:
+    from madsim.envs.config import check_config
+
+    print(check_config(args.file))
+    return 0
+
+
+def cmd_config_show(args) -> int:
+    from madsim.envs.config import show_config
+
+    print(show_config(args.file), end="")
+    return 0
+
+
 # --- serve / drive --------------------------------------------------------------------------
 
 
@@ -250,6 +267,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("car", help="car name or path")
     c.add_argument("--json", action="store_true")
     c.set_defaults(func=cmd_cars_info)
+
+    cfg = sub.add_parser("config", help="check or show a scenario configuration (YAML)")
+    gsub = cfg.add_subparsers(dest="config_command", required=True)
+    g = gsub.add_parser("check", help="validate a config file (MADRaS files accepted)")
+    g.add_argument("file")
+    g.set_defaults(func=cmd_config_check)
+    g = gsub.add_parser("show", help="print the fully resolved config with defaults")
+    g.add_argument("file")
+    g.set_defaults(func=cmd_config_show)
 
     sv = sub.add_parser("serve", help="a drop-in TORCS scr_server on UDP")
     sv.add_argument("--track", default="madsim-road")

@@ -244,8 +244,11 @@ def test_client_rejects_ids_no_server_answers():
 @pytest.mark.parametrize("changes,check", [
     ({"angle": 0.2}, lambda c: 0 < c["steer"] <= 1),
     ({"trackPos": 0.8}, lambda c: c["steer"] < 0),
-    ({"speedX": 40.0}, lambda c: c["accel"] > 0.5 and c["brake"] == 0),
-    ({"speedX": 160.0}, lambda c: c["accel"] == 0 and c["brake"] > 0),
+    ({"speedX": 40.0, "track": [200.0] * 19}, lambda c: c["accel"] > 0.5 and c["brake"] == 0),
+    ({"speedX": 160.0, "track": [200.0] * 19}, lambda c: c["accel"] == 0 and c["brake"] > 0),
+    # a bend 10 m ahead caps the target at max(30, 3.6 sqrt(2 * 5 * 10)) = 36 km/h: brake at 80
+    ({"speedX": 80.0, "track": [10.0] * 19}, lambda c: c["accel"] == 0 and c["brake"] > 0),
+    ({"speedX": 30.0, "track": [10.0] * 19}, lambda c: c["accel"] > 0 and c["brake"] == 0),
     ({"gear": 0}, lambda c: c["gear"] == 1),
     ({"gear": 2, "rpm": 6500.0}, lambda c: c["gear"] == 3),
     ({"gear": 3, "rpm": 2000.0}, lambda c: c["gear"] == 2),
