@@ -18,7 +18,7 @@ import numpy as np
 
 from madsim.tracks.build import COL, KIND_NAMES, PIECE_COLUMNS, STRAIGHT, STYLE_FENCE, BuildResult, Surface
 from madsim.tracks.library import TrackError
-from madsim.tracks.track import Track
+from madsim.tracks.track import Track, translate_pieces
 
 FORMAT = "madsim-track"
 FORMAT_VERSION = 1
@@ -27,13 +27,7 @@ FORMAT_VERSION = 1
 def save_compiled(track: Track, path: str | os.PathLike) -> None:
     """Write `track` to a compact `.mtrack` file."""
     p = np.array(track.pieces)
-    dx, dy, dz = track.offset
-    for c in ("x0", "cx"):
-        p[:, COL[c]] -= dx
-    for c in ("y0", "cy"):
-        p[:, COL[c]] -= dy
-    for c in ("zr0", "zl0", "zr1", "zl1"):
-        p[:, COL[c]] -= dz
+    translate_pieces(p, *(-v for v in track.offset))   # store the file's own coordinates
     header = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "columns": list(PIECE_COLUMNS),
         "name": track.name, "title": track.title, "category": track.category, "version": track.version,

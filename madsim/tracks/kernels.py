@@ -99,20 +99,25 @@ def nearest_sample(px, py, sx, sy, gx0, gy0, cell, nx, ny, cell_start, cell_item
 
 
 @numba.njit(cache=True)
+def locate_point(geo, length, piece, px, py):
+    """(s, n, piece) of one point, walking from `piece`; s wrapped into [0, L)."""
+    i, q, n = locate_from(geo, piece, px, py)
+    s = geo[i, GEO_S0] + q
+    if s >= length:
+        s -= length
+    elif s < 0.0:
+        s += length
+    return s, n, i
+
+
+@numba.njit(cache=True)
 def locate_many(px, py, geo, length, sx, sy, spiece, gx0, gy0, cell, nx, ny, cell_start, cell_items,
                 out_s, out_n, out_piece):
-    """Vectorised locate: distance from start s in [0, L) and lateral offset n for every point."""
+    """Vectorised locate: distance from start s in [0, L) and lateral offset n for every point,
+    walking from the piece of the nearest centre-line sample."""
     for k in range(px.shape[0]):
         j = nearest_sample(px[k], py[k], sx, sy, gx0, gy0, cell, nx, ny, cell_start, cell_items)
-        i, q, n = locate_from(geo, spiece[j], px[k], py[k])
-        s = geo[i, GEO_S0] + q
-        if s >= length:
-            s -= length
-        elif s < 0.0:
-            s += length
-        out_s[k] = s
-        out_n[k] = n
-        out_piece[k] = i
+        out_s[k], out_n[k], out_piece[k] = locate_point(geo, length, spiece[j], px[k], py[k])
 
 
 @numba.njit(cache=True)
@@ -120,12 +125,4 @@ def locate_many_hinted(px, py, geo, length, hint_piece, out_s, out_n, out_piece)
     """Locate each point by walking from a known piece (e.g. the car's previous piece), as TORCS
     does every step; unambiguous where the track crosses itself (bridges)."""
     for k in range(px.shape[0]):
-        i, q, n = locate_from(geo, hint_piece[k], px[k], py[k])
-        s = geo[i, GEO_S0] + q
-        if s >= length:
-            s -= length
-        elif s < 0.0:
-            s += length
-        out_s[k] = s
-        out_n[k] = n
-        out_piece[k] = i
+        out_s[k], out_n[k], out_piece[k] = locate_point(geo, length, hint_piece[k], px[k], py[k])

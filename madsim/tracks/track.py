@@ -99,12 +99,7 @@ class Track:
         dy = min(0.0, float(outer_y.min()))
         dz = min(0.0, float(zcols.min()))
         if dx or dy or dz:
-            for c in ("x0", "cx"):
-                p[:, COL[c]] -= dx
-            for c in ("y0", "cy"):
-                p[:, COL[c]] -= dy
-            for c in ("zr0", "zl0", "zr1", "zl1"):
-                p[:, COL[c]] -= dz
+            translate_pieces(p, -dx, -dy, -dz)
             geo = _geo_of(p)
             samples = _sample(p, w, geo)
 
@@ -340,6 +335,16 @@ class Track:
 
 
 # --- helpers ------------------------------------------------------------------------------
+
+
+def translate_pieces(p: np.ndarray, dx: float, dy: float, dz: float) -> None:
+    """Move a piece table (in place) by (dx, dy, dz), m."""
+    for c in ("x0", "cx"):
+        p[:, COL[c]] += dx
+    for c in ("y0", "cy"):
+        p[:, COL[c]] += dy
+    for c in ("zr0", "zl0", "zr1", "zl1"):
+        p[:, COL[c]] += dz
 
 
 def _piece_end(row: np.ndarray) -> tuple[float, float, float]:
