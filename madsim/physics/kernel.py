@@ -1,0 +1,555 @@
+"""The compiled per-car vehicle model (spec/torcs-car-format.md section 5) and its track lookups.
+
+Everything here is plain loops over cars on the arrays described in `madsim.physics.layout`
+(car axis first), compiled with `numba.njit(cache=True)`; with NUMBA_DISABLE_JIT=1 the same code
+runs as ordinary Python for debugging. There is no second (numpy) implementation.
+
+One sub-step of dt = 0.002 s, in TORCS's order (spec 4.11): steering -> gearbox -> engine torque
+-> wheel loads -> tyre forces -> wheel spin -> engine speed -> body forces -> velocities ->
+positions -> track position, surfaces and laps. A car's state is read into locals once per call
+and written back at the end, so the sub-step loop runs in registers.
+
+Low-speed stability (spec 5.2 step 6), documented choice: both slip denominators are regularised,
+`sx = (vt - w R) / max(|vt|, V_REG)` and `sy = v_lat / max(|v|, V_REG)` with V_REG = 2 m/s
+(TORCS's definitions above that speed), and the wheel spin takes a linearised implicit step,
+`w += dt (T - R (Ft - dFt/d(wR) dvt)) / (I + dt R^2 dFt/d(wR))` (slope clamped at >= 0, dvt the
+wheel-speed change predicted from the last step's body acceleration), which is stable for any
+spin stiffness and leaves steady states unchanged. TORCS's two-sample
+force/spin averages are therefore not applied.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+
+from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
+    C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
+    C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
+    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
+    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_RIDE0,
+    C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_W0, C_WFR, C_WINGDOWN_F,
+    C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST, FLAG_START, P_A0, P_ARC, P_B0, P_B1,
+    P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV, P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND,
+    P_LEN, P_R, P_S0, P_SA0, P_SAMESURF, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R,
+    P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_X0, P_Y0, P_ZR0, P_ZR1, S_AX, S_AY, S_BACK,
+    S_BANKLOAD, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_FRIC, S_FUEL, S_FZ, S_GEAR, S_GX, S_GY,
+    S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ, S_ROLL, S_S, S_SHIFT, S_STEER,
+    S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_WF, S_WR, S_X, S_Y, S_YAW, S_Z, T_LENGTH,
+    T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
+)
+
+G = 9.80665          # m/s^2, as TORCS
+V_REG = 2.0          # m/s, slip denominator floor (see module docstring)
+SLIP_MAX = 1.5       # TORCS's slip clamp
+YAW_RATE_MAX = 9.0   # rad/s, TORCS's cap
+PARALLEL_MIN_CARS = 64   # below this many cars the serial loop is faster than threads
+
+_JIT = {"cache": True, "error_model": "numpy"}
+
+
+@numba.njit(inline="always", **_JIT)
+def _wrap(a):
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+@numba.njit(inline="always", **_JIT)
+def _engine_curve(curve_w, curve_t, i, n, we, j):
+    """Full-throttle torque at `we` (linear between points, constant beyond the ends), searching
+    from segment j (the previous one: engine speed changes little per step). Returns (T, j)."""
+    if we <= curve_w[i, 0]:
+        return curve_t[i, 0], j
+    if we >= curve_w[i, n - 1]:
+        return curve_t[i, n - 1], j
+    j = min(max(j, 1), n - 1)
+    while curve_w[i, j] < we:
+        j += 1
+    while curve_w[i, j - 1] > we:
+        j -= 1
+    u = (we - curve_w[i, j - 1]) / (curve_w[i, j] - curve_w[i, j - 1])
+    return curve_t[i, j - 1] + u * (curve_t[i, j] - curve_t[i, j - 1]), j
+
+
+@numba.njit(**_JIT)
+def engine_torque(cp, curve_w, curve_t, i, we, throttle):
+    """Engine torque (N m) of car i at engine speed `we` (rad/s) and throttle in [0, 1] (spec 4.4):
+    full-throttle curve times the throttle map with engine braking; zero above the rev limiter."""
+    if we > cp[i, C_LIMIT]:
+        return 0.0
+    tmax, _ = _engine_curve(curve_w, curve_t, i, int(cp[i, C_NCURVE]), we, 1)
+    tick = cp[i, C_TICK]
+    k = cp[i, C_EBRAKE] * (we - tick) / (cp[i, C_MAXI] - tick)
+    return tmax * (throttle * (1.0 + k) - k)
+
+
+@numba.njit(**_JIT)
+def tyre_shape(s, b, c, e, skid):
+    """Magic-formula force factor F(s) of spec 4.9 for slip magnitude s >= 0 (the slip clamp at
+    1.5, the TORCS shape sin(C atan(B s (1-E) + E atan(B s))) times the skid term (1 + skid s)),
+    and its slope dF/ds (0 beyond the clamp)."""
+    st = min(s, SLIP_MAX)
+    u = b * st
+    g = u * (1.0 - e) + e * math.atan(u)
+    phi = c * math.atan(g)
+    sh = math.sin(phi)
+    if s > SLIP_MAX:
+        return sh * (1.0 + skid * st), 0.0
+    dsh = math.cos(phi) * c / (1.0 + g * g) * (b * (1.0 - e) + e * b / (1.0 + u * u))
+    return sh * (1.0 + skid * st), dsh * (1.0 + skid * st) + sh * skid
+
+
+@numba.njit(inline="always", **_JIT)
+def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
+    """Isotropic combined-slip tyre of one axle per unit of load scale K = Fz mu lf friction:
+    (ft, fn, dft) = force along and across the wheel (wheel frame) and d(ft)/d(w R) >= 0 for
+    the implicit spin step."""
+    vt = vwx * cd + vwy * sd
+    vl = vwy * cd - vwx * sd
+    dx = max(abs(vt), V_REG)
+    sx = (vt - spin_speed) / dx
+    sy = vl / max(math.sqrt(vwx * vwx + vwy * vwy), V_REG)
+    s = math.sqrt(sx * sx + sy * sy)
+    if s <= 1e-6:
+        return 0.0, 0.0, b * c / dx
+    f, df = tyre_shape(s, b, c, e, skid)
+    fs = f / s
+    cx, cy = sx / s, sy / s
+    return -fs * sx, -fs * sy, (max(df, 0.0) * cx * cx + fs * cy * cy) / dx
+
+
+@numba.njit(inline="always", **_JIT)
+def _piece_local(pt, p, x, y):
+    """(q, n, cos h, sin h) of point (x, y) in piece p: centre-line distance from the piece start
+    (m), lateral offset (left +) and the tangent direction at the projection."""
+    kind = pt[p, P_KIND]
+    if kind == 0.0:
+        ca, sa = pt[p, P_CA0], pt[p, P_SA0]
+        dx, dy = x - pt[p, P_X0], y - pt[p, P_Y0]
+        return dx * ca + dy * sa, dy * ca - dx * sa, ca, sa
+    r, d, a0 = pt[p, P_R], pt[p, P_ARC], pt[p, P_A0]
+    dx, dy = x - pt[p, P_CX], y - pt[p, P_CY]
+    dist = math.sqrt(dx * dx + dy * dy)
+    inv = 1.0 / dist if dist > 0.0 else 0.0
+    phi = math.atan2(dy, dx)
+    if kind == 1.0:
+        q = 0.5 * d + _wrap(phi - (a0 - 0.5 * math.pi) - 0.5 * d)
+        return q * r, r - dist, -dy * inv, dx * inv
+    q = 0.5 * d + _wrap((a0 + 0.5 * math.pi) - 0.5 * d - phi)
+    return q * r, dist - r, dy * inv, -dx * inv
+
+
+@numba.njit(inline="always", **_JIT)
+def _locate(pt, p, x, y):
+    """TORCS's walk from piece p to the piece holding the projection of (x, y) (track spec
+    10.1: once it moves in one direction it never turns back). Returns (p, q, n, cos h, sin h)."""
+    npieces = pt.shape[0]
+    q, n, ch, sh = _piece_local(pt, p, x, y)
+    direction = 0
+    for _ in range(npieces):
+        if q < 0.0 and direction <= 0:
+            direction = -1
+            p = p - 1 if p > 0 else npieces - 1
+        elif q > pt[p, P_LEN] and direction >= 0:
+            direction = 1
+            p = p + 1 if p < npieces - 1 else 0
+        else:
+            break
+        q, n, ch, sh = _piece_local(pt, p, x, y)
+    return p, q, n, ch, sh
+
+
+@numba.njit(inline="always", **_JIT)
+def _surface(pt, p, q, nw, half):
+    """Material index under a point at distance q (m, may run one piece over) and offset nw."""
+    npieces = pt.shape[0]
+    if q < 0.0:
+        p = p - 1 if p > 0 else npieces - 1
+        q += pt[p, P_LEN]
+    elif q > pt[p, P_LEN]:
+        q -= pt[p, P_LEN]
+        p = p + 1 if p < npieces - 1 else 0
+    over_r = -nw - half
+    over_l = nw - half
+    if over_r > 0.0:
+        bw = pt[p, P_BW_R]
+        if over_r <= bw:
+            return int(pt[p, P_BSURF_R])
+        u = min(max(q / pt[p, P_LEN], 0.0), 1.0)
+        if over_r <= bw + pt[p, P_SW0_R] + u * (pt[p, P_SW1_R] - pt[p, P_SW0_R]):
+            return int(pt[p, P_SSURF_R])
+        return int(pt[p, P_WSURF_R])
+    if over_l > 0.0:
+        bw = pt[p, P_BW_L]
+        if over_l <= bw:
+            return int(pt[p, P_BSURF_L])
+        u = min(max(q / pt[p, P_LEN], 0.0), 1.0)
+        if over_l <= bw + pt[p, P_SW0_L] + u * (pt[p, P_SW1_L] - pt[p, P_SW0_L]):
+            return int(pt[p, P_SSURF_L])
+        return int(pt[p, P_WSURF_L])
+    return int(pt[p, P_SURF])
+
+
+@numba.njit(**_JIT)
+def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
+    """Friction and rolling resistance under each wheel of car i (CG at q, n on piece p)."""
+    for k in range(4):
+        xw = cp[i, C_A] if k < 2 else -cp[i, C_B]
+        yw = cp[i, C_WY + k]
+        j = _surface(pt, p, q + xw * cpsi - yw * spsi, n + xw * spsi + yw * cpsi, half)
+        st[i, S_FRIC + k] = surf[j, 0]
+        st[i, S_ROLL + k] = surf[j, 1]
+
+
+@numba.njit(inline="always", **_JIT)
+def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
+    """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
+    piece, and store s, n, piece, track heading, road z, the road gradient at the CG, the surface
+    under each wheel and (if count_laps) the lap bookkeeping of track spec 10.4.
+    Assumes the car moved at most a few pieces since the last call."""
+    old = int(st[i, S_PIECE])
+    p, q, n, ch, sh = _locate(pt, old, x, y)
+    length, w = tsc[T_LENGTH], tsc[T_WIDTH]
+    s = pt[p, P_S0] + q
+    if s >= length:
+        s -= length
+    elif s < 0.0:
+        s += length
+    plen, inv_len, curv = pt[p, P_LEN], pt[p, P_INVLEN], pt[p, P_CURV]
+    st[i, S_S] = s
+    st[i, S_N] = n
+    st[i, S_PIECE] = p
+    st[i, S_THEAD] = _wrap(pt[p, P_A0] + q * curv)
+
+    # road height and gradient at the CG (track spec 5.4: linear right edge + banking)
+    u = min(max(q * inv_len, 0.0), 1.0)
+    b0, b1 = pt[p, P_B0], pt[p, P_B1]
+    tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
+    yr = n + 0.5 * w
+    lo = -1e30 if tsc[T_TANGENT_R] > 0.0 else 0.0
+    hi = 1e30 if tsc[T_TANGENT_L] > 0.0 else w
+    yc = min(max(yr, lo), hi)
+    zr0 = pt[p, P_ZR0]
+    z = zr0 + u * (pt[p, P_ZR1] - zr0) + yc * tb
+    dz_dq = ((pt[p, P_ZR1] - zr0) + yc * (b1 - b0) * (1.0 + tb * tb)) * inv_len
+    if curv != 0.0:     # metres along the track at offset n on a curve
+        dz_dq /= max(1.0 - curv * n, 0.1)
+    dz_dn = tb if lo <= yr <= hi else 0.0
+    # following a banked curve: N = m (g - v^2 kappa_n dz/dn) cos(slope) (the car's path
+    # curves with the road; a plane or a straight bank adds nothing)
+    st[i, S_BANKLOAD] = -curv / max(1.0 - curv * n, 0.1) * dz_dn
+    st[i, S_GX] = dz_dq * ch - dz_dn * sh
+    st[i, S_GY] = dz_dq * sh + dz_dn * ch
+    st[i, S_ROADZ] = z
+    st[i, S_Z] = z + cp[i, C_H]
+
+    # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
+    # road whose material is the same on this piece and its neighbours
+    cpsi = cy * ch + sy * sh     # cos(yaw - track heading)
+    spsi = sy * ch - cy * sh
+    half = 0.5 * w
+    reach = cp[i, C_REACH]
+    if pt[p, P_SAMESURF] > 0.0 and abs(n) + reach <= half and reach <= plen:
+        j = int(pt[p, P_SURF])
+        for k in range(4):
+            st[i, S_FRIC + k] = surf[j, 0]
+            st[i, S_ROLL + k] = surf[j, 1]
+    else:
+        _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half)
+
+
+    if count_laps and p != old:
+        f_old, f_new = pt[old, P_FLAG], pt[p, P_FLAG]
+        if f_old == FLAG_LAST and f_new == FLAG_START:
+            if st[i, S_BACK] > 0.0:
+                st[i, S_BACK] -= 1.0
+            else:
+                st[i, S_LAPS] += 1.0
+                # the first lap's timer runs from the race start: crossing the line from the
+                # grid does not restart it (scr-protocol.md section 5, curLapTime)
+                if st[i, S_LAPS] > 1.0:
+                    lap = st[i, S_TIME] - st[i, S_LAPSTART]
+                    st[i, S_LASTLAP] = lap
+                    if st[i, S_BESTLAP] == 0.0 or lap < st[i, S_BESTLAP]:
+                        st[i, S_BESTLAP] = lap
+                    st[i, S_LAPSTART] = st[i, S_TIME]
+        elif f_old == FLAG_START and f_new == FLAG_LAST:
+            st[i, S_BACK] += 1.0
+    st[i, S_CURLAP] = st[i, S_TIME] - st[i, S_LAPSTART]
+    st[i, S_DIST] = (st[i, S_LAPS] - (st[i, S_BACK] + 1.0)) * length + s
+
+
+@numba.njit(**_JIT)
+def refresh(st, cp, pt, surf, tsc, count_laps):
+    """Re-derive yaw wrap, body velocities and the track position of every car after its pose
+    or velocity was set from outside (reset, contact corrections)."""
+    for i in range(st.shape[0]):
+        yaw = _wrap(st[i, S_YAW])
+        st[i, S_YAW] = yaw
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        st[i, S_VX] = st[i, S_VXG] * cy + st[i, S_VYG] * sy
+        st[i, S_VY] = st[i, S_VYG] * cy - st[i, S_VXG] * sy
+        track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y], cy, sy, count_laps)
+
+
+@numba.njit(**_JIT)
+def check_controls(controls, info):
+    """Count non-finite controls: info[0] = count, info[1] = first bad flat index (or -1)."""
+    info[0] = 0
+    info[1] = -1
+    for i in range(controls.shape[0]):
+        for j in range(controls.shape[1]):
+            if not math.isfinite(controls[i, j]):
+                if info[1] < 0:
+                    info[1] = i * controls.shape[1] + j
+                info[0] += 1
+
+
+@numba.njit(**_JIT)
+def advance(st, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, fuel_on):
+    """Advance every car by `nsub` sub-steps of `dt` with its controls held (see `advance_car`)."""
+    for i in range(st.shape[0]):
+        advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, fuel_on)
+
+
+@numba.njit(parallel=True, **_JIT)
+def advance_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, fuel_on):
+    """`advance` with the cars shared among threads (cars are independent between contact
+    calls, so the result is bit-identical to the serial loop)."""
+    for i in numba.prange(st.shape[0]):
+        advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, fuel_on)
+
+
+@numba.njit(**_JIT)
+def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, fuel_on):
+    """`nsub` explicit sub-steps of car i: the dynamic bicycle model of car spec 5.2 with TORCS's
+    engine, gearbox, tyre and aero rules. Controls must be finite (any range: clipped here).
+    Assumes small road grade/banking (gravity and load from the local road gradient) and no
+    contact (the contact solver runs between calls)."""
+    steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
+    accel = min(max(controls[i, U_ACCEL], 0.0), 1.0)
+    brake = min(max(controls[i, U_BRAKE], 0.0), 1.0)
+    clutch = min(max(controls[i, U_CLUTCH], 0.0), 1.0)
+    gear_req = min(max(math.floor(controls[i, U_GEAR] + 0.5), -1.0), cp[i, C_TOP])
+
+    # car constants
+    a, b, wb, h = cp[i, C_A], cp[i, C_B], cp[i, C_L], cp[i, C_H]
+    izz, mass_dry = cp[i, C_IZZ], cp[i, C_MASS]
+    lock, steer_rate, track_f = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, cp[i, C_TF]
+    rad_f, rad_r = cp[i, C_RAD], cp[i, C_RAD + 2]
+    skid = cp[i, C_SKID]
+    bf, cf, ef, br, cr, er = cp[i, C_BF], cp[i, C_CF], cp[i, C_EF], cp[i, C_BR], cp[i, C_CR], cp[i, C_ER]
+    share = cp[i, C_FSHARE]
+    driven_f, driven_r = cp[i, C_DRIVEN_F] > 0.0, cp[i, C_DRIVEN_R] > 0.0
+    limiter, maxi, tick, ieng = cp[i, C_LIMIT], cp[i, C_MAXI], cp[i, C_TICK], cp[i, C_IENG]
+    ebrake, inv_span = cp[i, C_EBRAKE], 1.0 / (cp[i, C_MAXI] - cp[i, C_TICK])
+    n_curve = int(cp[i, C_NCURVE])
+    seg = 1
+    p_brake = brake * cp[i, C_PMAX]
+    tb_f = (cp[i, C_KB] + cp[i, C_KB + 1]) * p_brake * cp[i, C_BRAKE_FRONT]
+    tb_r = (cp[i, C_KB + 2] + cp[i, C_KB + 3]) * p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
+    wear = 1.0 + st[i, S_DAMAGE] / 10000.0
+    scx2, wing_drag = cp[i, C_SCX2] * wear, cp[i, C_WINGDRAG] * wear
+    clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
+    wdown_f, wdown_r = cp[i, C_WINGDOWN_F], cp[i, C_WINGDOWN_R]
+    y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]
+    tf_share = h / track_f * (b / wb)
+    tr_share = h / cp[i, C_TR] * (a / wb)
+
+    # state into locals
+    x, y, yaw, r = st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R]
+    vxg, vyg = st[i, S_VXG], st[i, S_VYG]
+    ax_s, ay_s = st[i, S_AX], st[i, S_AY]
+    wf, wr, we = st[i, S_WF], st[i, S_WR], st[i, S_WE]
+    gear, shift_t, d = st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER]
+    fuel = st[i, S_FUEL]
+    fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    # ground-effect factor from the ride heights, lowered by the loads of the previous step
+    # (spring x bellcrank^2 wheel rate); evaluated once per call, ride heights change slowly
+    ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
+            + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
+            + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
+            + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
+    hm = 1.5 * ride
+    hm = hm * hm
+    hm = 2.0 * math.exp(-3.0 * hm * hm)
+    d_done = math.nan
+    delta = cd = 1.0
+    sd = 0.0
+
+    for _ in range(nsub):
+        # --- steering: rate-limited towards steer * lock; one angle = mean Ackermann angle
+        d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
+        if d != d_done:
+            d_done = d
+            delta = 0.0
+            if d != 0.0:
+                ta = math.tan(abs(d))
+                delta = math.copysign(0.5 * (abs(d) + math.atan(wb * ta / (wb + track_f * ta))), d)
+            cd, sd = math.cos(delta), math.sin(delta)
+
+        # --- gearbox (spec 4.3): immediate change unless a shift is in progress
+        if gear_req != gear and shift_t <= 0.0:
+            gear = gear_req
+            if gear != 0.0:
+                shift_t = cp[i, C_SHIFT]
+        c = 1.0 - clutch
+        throttle = accel
+        if shift_t > 0.0:
+            if clutch <= 0.0:
+                c = 0.0
+                throttle = min(throttle, 0.1)
+            shift_t -= dt
+        slot = int(gear) + 1
+        ratio = cp[i, C_RATIO + slot]
+        coupled = gear != 0.0 and c > 0.01
+
+        # --- engine torque (spec 4.4): limiter cut holds the engine at the red line
+        if we > limiter:
+            we = limiter
+            teng = 0.0
+        else:
+            tmax, seg = _engine_curve(curve_w, curve_t, i, n_curve, we, seg)
+            k_eb = ebrake * (we - tick) * inv_span
+            teng = tmax * (throttle * (1.0 + k_eb) - k_eb)
+        if fuel_on and fuel <= 0.0:
+            teng = 0.0
+        t_drive = teng * ratio * min(3.0 * c, 1.0)
+
+        # --- body velocity, road gradient in the body frame
+        vx = vxg * cy + vyg * sy
+        vy = vyg * cy - vxg * sy
+        gx, gy = st[i, S_GX], st[i, S_GY]
+        gbx = gx * cy + gy * sy
+        gby = gy * cy - gx * sy
+        inv_norm = 1.0 / math.sqrt(1.0 + gx * gx + gy * gy)
+        m = mass_dry + fuel
+
+        # --- loads (spec 5.2 step 4): normal force (slope, banked curve), quasi-static transfer
+        # from the previous step, downforce with the ground-effect factor
+        ax_kin = ax_s - G * gbx * inv_norm
+        ay_kin = ay_s - G * gby * inv_norm
+        normal = m * max(G + st[i, S_BANKLOAD] * (vxg * vxg + vyg * vyg), 0.0) * inv_norm
+        v = math.sqrt(vx * vx + vy * vy)
+        vx2 = vx * vx
+        body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)
+        down_f = clift_f * body_down
+        down_r = clift_r * body_down
+        if vx > 0.0:
+            down_f += wdown_f * vx2
+            down_r += wdown_r * vx2
+        shift_x = m * ax_s * h / wb
+        fz_f = max(normal * b / wb - shift_x + down_f, 0.0)
+        fz_r = max(normal * a / wb + shift_x + down_r, 0.0)
+        fz0 = min(max(fz_f * cp[i, C_WFR] + m * ay_s * tf_share, 0.0), fz_f)
+        fz2 = min(max(fz_r * cp[i, C_WRR] + m * ay_s * tr_share, 0.0), fz_r)
+        fz1 = fz_f - fz0
+        fz3 = fz_r - fz2
+
+        # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
+        k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
+                                                    * math.exp(cp[i, C_LFK] * fz0 / cp[i, C_OPLOAD]))
+        k1 = fz1 * cp[i, C_KMU + 1] * st[i, S_FRIC + 1] * (
+            cp[i, C_LFMIN + 1] + (cp[i, C_LFMAX + 1] - cp[i, C_LFMIN + 1])
+            * math.exp(cp[i, C_LFK + 1] * fz1 / cp[i, C_OPLOAD + 1]))
+        k2 = fz2 * cp[i, C_KMU + 2] * st[i, S_FRIC + 2] * (
+            cp[i, C_LFMIN + 2] + (cp[i, C_LFMAX + 2] - cp[i, C_LFMIN + 2])
+            * math.exp(cp[i, C_LFK + 2] * fz2 / cp[i, C_OPLOAD + 2]))
+        k3 = fz3 * cp[i, C_KMU + 3] * st[i, S_FRIC + 3] * (
+            cp[i, C_LFMIN + 3] + (cp[i, C_LFMAX + 3] - cp[i, C_LFMIN + 3])
+            * math.exp(cp[i, C_LFK + 3] * fz3 / cp[i, C_OPLOAD + 3]))
+        roll = (fz0 * st[i, S_ROLL] + fz1 * st[i, S_ROLL + 1] + fz2 * st[i, S_ROLL + 2]
+                + fz3 * st[i, S_ROLL + 3])
+        k_f = k0 + k1
+        k_r = k2 + k3
+
+        # --- tyres (spec 4.9): one slip per axle, forces per wheel by its load scale
+        ft_f, fn_f, dft_f = _tyre(vx, vy + a * r, cd, sd, wf * rad_f, bf, cf, ef, skid)
+        ft_r, fn_r, dft_r = _tyre(vx, vy - b * r, 1.0, 0.0, wr * rad_r, br, cr, er, skid)
+
+        # --- wheel spin (spec 4.10 inertias; implicit step; brakes stop but never reverse)
+        if coupled:
+            i_f = cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F]
+            i_r = cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R]
+        else:
+            i_f = cp[i, C_IFREE_F]
+            i_r = cp[i, C_IFREE_R]
+        # linearised in the slip velocity vt - wR: the wheel's own change and the body's
+        # (predicted from the last step's acceleration) both enter, so a steadily accelerating
+        # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)
+        dvx = (ax_kin + r * vy) * dt
+        dvt_f = dvx * cd + (ay_kin - r * vx) * dt * sd
+        ieff_f = i_f + dt * k_f * dft_f * rad_f * rad_f
+        ieff_r = i_r + dt * k_r * dft_r * rad_r * rad_r
+        wf += dt * (t_drive * share - k_f * rad_f * (ft_f - dft_f * dvt_f)) / ieff_f
+        wr += dt * (t_drive * (1.0 - share) - k_r * rad_r * (ft_r - dft_r * dvx)) / ieff_r
+        dwb = dt * tb_f / ieff_f
+        wf = max(wf - dwb, 0.0) if wf > 0.0 else min(wf + dwb, 0.0)
+        dwb = dt * tb_r / ieff_r
+        wr = max(wr - dwb, 0.0) if wr > 0.0 else min(wr + dwb, 0.0)
+
+        # --- engine speed (spec 4.10): follows the driven wheels through the clutch, else free
+        we_free = we + teng / ieng * dt
+        if coupled:
+            if driven_f and driven_r:
+                w_axle = 0.5 * (wf + wr)
+            elif driven_f:
+                w_axle = wf
+            else:
+                w_axle = wr
+            c4 = c * c * c * c
+            we = w_axle * ratio * c4 + we_free * (1.0 - c4)
+            if we > maxi:
+                we = maxi
+                if w_axle * ratio > maxi:        # over-revving: the engine holds the wheels back
+                    scale = maxi / (w_axle * ratio)
+                    if driven_f:
+                        wf *= scale
+                    if driven_r:
+                        wr *= scale
+        else:
+            we = we_free
+        we = min(max(we, tick), maxi)
+        if fuel_on:
+            fuel = max(fuel - abs(teng) * we * cp[i, C_FUELCONS] * 1e-7 * dt, 0.0)
+
+        # --- body forces (body frame): tyres, aero drag, wings, gravity along the road gradient
+        kf_x = ft_f * cd - fn_f * sd
+        fy_f = (ft_f * sd + fn_f * cd) * k_f
+        fy_r = fn_r * k_r
+        drag = -math.copysign(scx2 * vx2, vx)
+        if vx > 0.0:
+            drag += wing_drag * vx2
+        fx_ng = kf_x * k_f + ft_r * k_r + drag
+        fy_ng = fy_f + fy_r
+        fx = fx_ng - m * G * gbx * inv_norm
+        fy = fy_ng - m * G * gby * inv_norm
+        mz = a * fy_f - b * fy_r - kf_x * (k0 * y0 + k1 * y1) - ft_r * (k2 * y2 + k3 * y3)
+
+        # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
+        vg = math.sqrt(vxg * vxg + vyg * vyg)
+        rv = min(roll / vg, m / dt) if vg > 1e-5 else 0.0
+        vxg += ((fx * cy - fy * sy) - rv * vxg) / m * dt
+        vyg += ((fx * sy + fy * cy) - rv * vyg) / m * dt
+        rm = min(roll * wb * 0.5, abs(r) * izz / dt)
+        r += (mz - math.copysign(rm, r)) / izz * dt
+        r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
+        ax_s = (fx_ng - rv * vx) / m
+        ay_s = (fy_ng - rv * vy) / m
+        x += vxg * dt
+        y += vyg * dt
+        yaw = _wrap(yaw + r * dt)
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        st[i, S_TIME] += dt
+        track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, True)
+
+    st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R] = x, y, yaw, r
+    st[i, S_VXG], st[i, S_VYG] = vxg, vyg
+    st[i, S_VX] = vxg * cy + vyg * sy
+    st[i, S_VY] = vyg * cy - vxg * sy
+    st[i, S_AX], st[i, S_AY] = ax_s, ay_s
+    st[i, S_WF], st[i, S_WR], st[i, S_WE] = wf, wr, we
+    st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER] = gear, shift_t, d
+    st[i, S_FUEL] = fuel
+    st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3] = fz0, fz1, fz2, fz3

@@ -1,0 +1,124 @@
+"""Column layouts of the arrays the physics kernels share with `World`.
+
+Every array has the car (or piece) axis first. Names are column indices; the tuples list the
+columns in order so that `World` can document and expose them. Units are SI (m, s, rad, kg, N).
+"""
+
+from __future__ import annotations
+
+
+def _enum(names: str) -> tuple[str, ...]:
+    return tuple(names.split())
+
+
+# --- per-car state, `World.state` (N, len(STATE_COLUMNS)) float64, Fortran order ---------------
+# Fortran order keeps every column contiguous, so a column is a plain (N,) array that the contact
+# solver can modify in place.
+STATE_COLUMNS = _enum(
+    "x y z yaw vx_g vy_g yaw_rate vx vy ax ay "   # pose, global velocity, body velocity, body specific force
+    "spin_f spin_r engine_speed gear shift_timer steer_angle fuel damage "
+    "s n piece laps back_crossings lap_start_time cur_lap_time last_lap_time best_lap_time "
+    "dist_raced time "
+    "fz_fr fz_fl fz_rr fz_rl fric_fr fric_fl fric_rr fric_rl roll_fr roll_fl roll_rr roll_rl "
+    "grad_x grad_y track_heading road_z bank_load"
+)
+STATE_DOC = {
+    "x": "CG x, global frame, m", "y": "CG y, m",
+    "z": "CG height: road height under the CG + GC height, m",
+    "yaw": "heading of the body x axis, rad in [-pi, pi)",
+    "vx_g": "global velocity x, m/s", "vy_g": "global velocity y, m/s",
+    "yaw_rate": "rad/s, |r| <= 9", "vx": "body-frame longitudinal velocity, m/s",
+    "vy": "body-frame lateral velocity (left +), m/s",
+    "ax": "body-frame longitudinal specific force of tyres + aero + rolling (no gravity), m/s^2",
+    "ay": "body-frame lateral specific force (no gravity), m/s^2",
+    "spin_f": "front wheel spin (both front wheels), rad/s",
+    "spin_r": "rear wheel spin (both rear wheels), rad/s",
+    "engine_speed": "rad/s (SCR rpm sensor = this x 10)",
+    "gear": "engaged gear, -1 reverse, 0 neutral, 1..top", "shift_timer": "s left of the shift-time torque cut",
+    "steer_angle": "actual front steering angle after the rate limit, rad (left +)",
+    "fuel": "kg", "damage": "TORCS damage points",
+    "s": "distance from the start line along the centre line (distFromStart), m in [0, L)",
+    "n": "signed lateral offset from the centre line (toMiddle), m, left +",
+    "piece": "index of the track piece the CG is on", "laps": "completed start-line crossings",
+    "back_crossings": "backward crossings not yet consumed by a forward one",
+    "lap_start_time": "time of the last counted crossing, s", "cur_lap_time": "s",
+    "last_lap_time": "s (0 before the first complete lap)", "best_lap_time": "s (0: none yet)",
+    "dist_raced": "(laps - (back_crossings + 1)) * L + s, m", "time": "simulated time since reset, s",
+    "fz_fr": "wheel load front right, N", "fz_fl": "N", "fz_rr": "N", "fz_rl": "N",
+    "fric_fr": "surface friction under the wheel", "fric_fl": "", "fric_rr": "", "fric_rl": "",
+    "roll_fr": "surface rolling resistance under the wheel", "roll_fl": "", "roll_rr": "", "roll_rl": "",
+    "grad_x": "road surface gradient dz/dX at the CG (global)", "grad_y": "dz/dY",
+    "track_heading": "centre-line tangent heading at the CG's projection, rad",
+    "road_z": "road height under the CG, m",
+    "bank_load": "extra normal acceleration per (m/s)^2 of speed from a banked curve, 1/m",
+}
+S = {name: i for i, name in enumerate(STATE_COLUMNS)}
+(S_X, S_Y, S_Z, S_YAW, S_VXG, S_VYG, S_R, S_VX, S_VY, S_AX, S_AY,
+ S_WF, S_WR, S_WE, S_GEAR, S_SHIFT, S_STEER, S_FUEL, S_DAMAGE,
+ S_S, S_N, S_PIECE, S_LAPS, S_BACK, S_LAPSTART, S_CURLAP, S_LASTLAP, S_BESTLAP,
+ S_DIST, S_TIME) = range(30)
+S_FZ = S["fz_fr"]          # 4 wheel loads follow in wheel order
+S_FRIC = S["fric_fr"]      # 4 frictions
+S_ROLL = S["roll_fr"]      # 4 rolling resistances
+S_GX, S_GY, S_THEAD, S_ROADZ = S["grad_x"], S["grad_y"], S["track_heading"], S["road_z"]
+S_BANKLOAD = S["bank_load"]
+N_STATE = len(STATE_COLUMNS)
+
+# --- per-car constants (N, N_CAR) float64, built from CarSpec by `carparams.car_table` ---------
+MAX_GEAR_SLOTS = 10   # gear + 1 for gear in -1..8
+CAR_COLUMNS = _enum(
+    "mass_dry izz a b wheelbase cg_h track_f track_r w_front w_front_right w_rear_right "
+    "skid mf_bf mf_cf mf_ef mf_br mf_cr mf_er "
+    "tickover limiter revs_maxi eng_inertia eng_brake fuel_cons n_curve "
+    "top_gear shift_time drive_front_share driven_f driven_r i_free_f i_free_r "
+    "steer_lock steer_speed brake_front brake_pmax "
+    "scx2 clift_f clift_r wing_drag wing_down_f wing_down_r "
+    "half_length half_width reach"
+)
+C = {name: i for i, name in enumerate(CAR_COLUMNS)}
+_n = len(CAR_COLUMNS)
+# per-wheel blocks of 4 (wheel order FR, FL, RR, RL)
+C_WY = _n             # wheel y relative to the CG, m
+C_RAD = _n + 4        # tyre radius, m
+C_KMU = _n + 8        # mu x camber factor
+C_OPLOAD = _n + 12    # operating load, N
+C_LFMIN = _n + 16
+C_LFMAX = _n + 20
+C_LFK = _n + 24
+C_W0 = _n + 28        # static load (dry mass), N
+C_KSPR = _n + 32      # wheel rate spring x bellcrank^2, N/m
+C_RIDE0 = _n + 36     # static ride height, m
+C_KB = _n + 40        # brake torque per Pa, N m/Pa
+C_RATIO = _n + 44                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
+C_IDRIVE_F = C_RATIO + MAX_GEAR_SLOTS   # driven front-axle inertia per slot, kg m^2
+C_IDRIVE_R = C_IDRIVE_F + MAX_GEAR_SLOTS
+N_CAR = C_IDRIVE_R + MAX_GEAR_SLOTS
+(C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,
+ C_SKID, C_BF, C_CF, C_EF, C_BR, C_CR, C_ER,
+ C_TICK, C_LIMIT, C_MAXI, C_IENG, C_EBRAKE, C_FUELCONS, C_NCURVE,
+ C_TOP, C_SHIFT, C_FSHARE, C_DRIVEN_F, C_DRIVEN_R, C_IFREE_F, C_IFREE_R,
+ C_LOCK, C_STEERSPD, C_BRAKE_FRONT, C_PMAX,
+ C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
+ C_HALF_LEN, C_HALF_WID, C_REACH) = range(_n)
+
+# --- per-piece track table (P, N_PIECE) float64, built by `trackparams.piece_table` -----------
+PIECE_COLUMNS = _enum(
+    "kind s0 length radius arc a0 cos_a0 sin_a0 x0 y0 cx cy "   # geometry: kind 0 straight, 1 left, 2 right
+    "zr0 zr1 bank0 bank1 tanbank0 surface "
+    "border_w_r border_w_l border_surf_r border_surf_l side_w0_r side_w1_r side_w0_l side_w1_l "
+    "side_surf_r side_surf_l barrier_surf_r barrier_surf_l flag same_surface inv_length curvature"
+)
+P = {name: i for i, name in enumerate(PIECE_COLUMNS)}
+(P_KIND, P_S0, P_LEN, P_R, P_ARC, P_A0, P_CA0, P_SA0, P_X0, P_Y0, P_CX, P_CY,
+ P_ZR0, P_ZR1, P_B0, P_B1, P_TB0, P_SURF,
+ P_BW_R, P_BW_L, P_BSURF_R, P_BSURF_L, P_SW0_R, P_SW1_R, P_SW0_L, P_SW1_L,
+ P_SSURF_R, P_SSURF_L, P_WSURF_R, P_WSURF_L, P_FLAG, P_SAMESURF, P_INVLEN, P_CURV) = range(len(PIECE_COLUMNS))
+N_PIECE = len(PIECE_COLUMNS)
+FLAG_LAST, FLAG_START = 1.0, 2.0
+
+# track scalars (4,): length, width, right side continues the cross slope, left side does
+T_LENGTH, T_WIDTH, T_TANGENT_R, T_TANGENT_L = range(4)
+
+# controls (N, 5)
+CONTROL_COLUMNS = ("steer", "accel", "brake", "gear", "clutch")
+U_STEER, U_ACCEL, U_BRAKE, U_GEAR, U_CLUTCH = range(5)

@@ -1,0 +1,181 @@
+"""Flatten `CarSpec`s and a `Track` into the constant arrays the kernels read (layout.py).
+
+Approximations made here (spec/torcs-car-format.md 5.4): one tyre shape per axle (the right
+wheel's B, C, E; TORCS cars use the same values left and right), one tyre radius per axle, wheel
+rate = spring x bellcrank^2 for the ride-height drop under load, wing angle of attack = the wing
+angle (no pitch), wing downforce split to the axles by the lever rule.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from madsim.cars.spec import CarSpec
+from madsim.physics import layout as L
+from madsim.tracks.build import COL, LEFT
+from madsim.tracks.track import Track
+
+SKID = {"rookie": 0.40, "amateur": 0.35, "semi-pro": 0.30, "pro": 0.0}
+"""Skid term of the tyre formula per TORCS driver skill level (spec 4.9)."""
+
+
+def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cp (N, N_CAR), curve_w (N, M), curve_t (N, M)): per-car constants and torque curves."""
+    n = len(cars)
+    m = max(len(c.engine_speeds_rad_s) for c in cars)
+    cp = np.zeros((n, L.N_CAR))
+    curve_w = np.zeros((n, m))
+    curve_t = np.zeros((n, m))
+    for i, (car, skill) in enumerate(zip(cars, skills)):
+        cp[i] = _car_row(car, SKID[skill])
+        k = len(car.engine_speeds_rad_s)
+        curve_w[i, :k] = car.engine_speeds_rad_s
+        curve_t[i, :k] = car.engine_torques_nm
+        curve_w[i, k:] = car.engine_speeds_rad_s[-1]
+        curve_t[i, k:] = car.engine_torques_nm[-1]
+    return cp, curve_w, curve_t
+
+
+def _car_row(c: CarSpec, skid: float) -> np.ndarray:
+    row = np.zeros(L.N_CAR)
+    if c.top_gear + 2 > L.MAX_GEAR_SLOTS:
+        raise ValueError(f"car {c.name}: {c.top_gear} forward gears, at most {L.MAX_GEAR_SLOTS - 2} supported")
+    wl = c.wheelbase
+    row[L.C_MASS] = c.mass
+    row[L.C_IZZ] = c.izz
+    row[L.C_A], row[L.C_B], row[L.C_L] = c.a, c.b, wl
+    row[L.C_H] = c.cg_height
+    row[L.C_TF], row[L.C_TR] = c.track_front, c.track_rear
+    row[L.C_WF], row[L.C_WFR], row[L.C_WRR] = c.weight_front, c.weight_front_right, c.weight_rear_right
+    row[L.C_SKID] = skid
+    row[L.C_BF], row[L.C_CF], row[L.C_EF] = c.mf_b[0], c.mf_c[0], c.mf_e[0]
+    row[L.C_BR], row[L.C_CR], row[L.C_ER] = c.mf_b[2], c.mf_c[2], c.mf_e[2]
+    row[L.C_TICK], row[L.C_LIMIT], row[L.C_MAXI] = c.tickover, c.revs_limiter, c.revs_maxi
+    row[L.C_IENG], row[L.C_EBRAKE], row[L.C_FUELCONS] = c.engine_inertia, c.engine_brake_coeff, c.fuel_cons_factor
+    row[L.C_NCURVE] = len(c.engine_speeds_rad_s)
+    row[L.C_TOP], row[L.C_SHIFT] = c.top_gear, c.shift_time
+    row[L.C_FSHARE] = c.front_torque_share
+    driven = c.driven_wheels
+    row[L.C_DRIVEN_F], row[L.C_DRIVEN_R] = float(driven[0]), float(driven[2])
+    wheel_i = c.wheel_inertia + np.repeat(c.axle_inertia, 2) / 2.0   # I_free per wheel (spec 4.10)
+    row[L.C_IFREE_F] = wheel_i[0] + wheel_i[1]
+    row[L.C_IFREE_R] = wheel_i[2] + wheel_i[3]
+    row[L.C_LOCK], row[L.C_STEERSPD] = c.steer_lock, c.max_steer_speed
+    row[L.C_BRAKE_FRONT], row[L.C_PMAX] = c.brake_front_share, c.brake_max_pressure
+    row[L.C_SCX2] = c.scx2
+    row[L.C_CLIFT_F], row[L.C_CLIFT_R] = c.clift
+    sin_aoa = np.sin(c.wing_angle)
+    row[L.C_WINGDRAG] = float(np.sum(c.wing_kx * sin_aoa))            # < 0: drag
+    down = -c.wing_kz * sin_aoa                                        # > 0: downforce per vx^2
+    row[L.C_WINGDOWN_F] = float(np.sum(down * (c.wing_x + c.b) / wl))
+    row[L.C_WINGDOWN_R] = float(np.sum(down * (c.a - c.wing_x) / wl))
+    row[L.C_HALF_LEN], row[L.C_HALF_WID] = c.body_length / 2.0, c.body_width / 2.0
+    row[L.C_REACH] = float(np.max(np.hypot(c.wheel_pos[:, 0], c.wheel_pos[:, 1])))   # CG to farthest wheel
+    row[L.C_WY:L.C_WY + 4] = c.wheel_pos[:, 1]
+    row[L.C_RAD:L.C_RAD + 4] = c.wheel_radius
+    row[L.C_KMU:L.C_KMU + 4] = c.tire_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))
+    row[L.C_OPLOAD:L.C_OPLOAD + 4] = c.operating_load
+    row[L.C_LFMIN:L.C_LFMIN + 4] = c.load_factor_min
+    row[L.C_LFMAX:L.C_LFMAX + 4] = c.load_factor_max
+    row[L.C_LFK:L.C_LFK + 4] = c.load_factor_k
+    row[L.C_W0:L.C_W0 + 4] = c.static_wheel_load
+    row[L.C_KSPR:L.C_KSPR + 4] = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
+    row[L.C_RIDE0:L.C_RIDE0 + 4] = c.ride_height
+    row[L.C_KB:L.C_KB + 4] = c.brake_kb
+    # overall ratios and drive inertias per gear slot (slot = gear + 1; slot 1 = neutral)
+    share_i = 0.25 if c.drive_type == "4WD" else 0.5
+    for gear in range(-1, c.top_gear + 1):
+        slot = gear + 1
+        if gear == 0:
+            row[L.C_IDRIVE_F + slot] = row[L.C_IFREE_F]
+            row[L.C_IDRIVE_R + slot] = row[L.C_IFREE_R]
+            continue
+        idx = 0 if gear == -1 else gear
+        ratio = c.overall_ratios[idx]
+        row[L.C_RATIO + slot] = ratio
+        gear_i = c.gear_inertias[idx] * ratio * ratio * share_i
+        eff = c.gear_efficiencies[idx] if c.gear_efficiencies[idx] > 0 else 1.0
+        row[L.C_IDRIVE_F + slot] = 2.0 * gear_i + (wheel_i[0] + wheel_i[1]) / eff
+        row[L.C_IDRIVE_R + slot] = 2.0 * gear_i + (wheel_i[2] + wheel_i[3]) / eff
+    return row
+
+
+def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(pt (P, N_PIECE), surf (S, 2) friction/rolling resistance, tsc (4,)) for the kernels."""
+    p = track.pieces
+    w = track.width
+    npc = p.shape[0]
+    pt = np.zeros((npc, L.N_PIECE))
+    pt[:, L.P_KIND] = p[:, COL["kind"]]
+    pt[:, L.P_S0] = p[:, COL["s0"]]
+    pt[:, L.P_LEN] = p[:, COL["length"]]
+    pt[:, L.P_R] = p[:, COL["radius"]]
+    pt[:, L.P_ARC] = p[:, COL["arc"]]
+    pt[:, L.P_A0] = p[:, COL["a0"]]
+    pt[:, L.P_CA0] = np.cos(p[:, COL["a0"]])
+    pt[:, L.P_SA0] = np.sin(p[:, COL["a0"]])
+    for dst, src in ((L.P_X0, "x0"), (L.P_Y0, "y0"), (L.P_CX, "cx"), (L.P_CY, "cy")):
+        pt[:, dst] = p[:, COL[src]]
+    pt[:, L.P_ZR0] = p[:, COL["zr0"]]
+    pt[:, L.P_ZR1] = p[:, COL["zr1"]]
+    pt[:, L.P_B0] = np.arctan2(p[:, COL["zl0"]] - p[:, COL["zr0"]], w)
+    pt[:, L.P_B1] = np.arctan2(p[:, COL["zl1"]] - p[:, COL["zr1"]], w)
+    pt[:, L.P_TB0] = np.tan(pt[:, L.P_B0])
+    pt[:, L.P_SURF] = p[:, COL["surface"]]
+    for dst, src in ((L.P_BW_R, "border_w_r"), (L.P_BW_L, "border_w_l"), (L.P_BSURF_R, "border_surf_r"),
+                     (L.P_BSURF_L, "border_surf_l"), (L.P_SW0_R, "side_w0_r"), (L.P_SW1_R, "side_w1_r"),
+                     (L.P_SW0_L, "side_w0_l"), (L.P_SW1_L, "side_w1_l"), (L.P_SSURF_R, "side_surf_r"),
+                     (L.P_SSURF_L, "side_surf_l"), (L.P_WSURF_R, "barrier_surf_r"),
+                     (L.P_WSURF_L, "barrier_surf_l")):
+        pt[:, dst] = p[:, COL[src]]
+    # race flags (track spec 4.7): "last" wins over "start"
+    s0, ln, total = p[:, COL["s0"]], p[:, COL["length"]], track.length
+    last = s0 + ln > total - 50.0
+    start = ~last & (s0 < 50.0)
+    pt[:, L.P_FLAG] = np.where(last, L.FLAG_LAST, np.where(start, L.FLAG_START, 0.0))
+    pt[:, L.P_INVLEN] = 1.0 / pt[:, L.P_LEN]
+    kind = pt[:, L.P_KIND]
+    with np.errstate(divide="ignore"):
+        pt[:, L.P_CURV] = np.where(kind == 1, 1.0 / pt[:, L.P_R], np.where(kind == 2, -1.0 / pt[:, L.P_R], 0.0))
+    road = pt[:, L.P_SURF]
+    pt[:, L.P_SAMESURF] = (road == np.roll(road, 1)) & (road == np.roll(road, -1))
+    surf = np.array([[sf.friction, sf.rolling_resistance] for sf in track.surfaces], dtype=np.float64)
+    tsc = np.array([track.length, w, float(track.side_bank_tangent[0]), float(track.side_bank_tangent[1])])
+    return np.ascontiguousarray(pt), surf, tsc
+
+
+def pole_on_left(track: Track) -> bool:
+    """Pole side (track spec 7): the track's `pole position side`, else the inside of the first
+    curve."""
+    side = str(track.grid.get("pole position side", "")).strip().lower()
+    if side in ("left", "right"):
+        return side == "left"
+    kinds = track.pieces[:, COL["kind"]]
+    curved = kinds[kinds != 0]
+    return bool(curved.size == 0 or curved[0] == LEFT)
+
+
+QUICKRACE_GRID = {"rows": 2.0, "distance to start": 25.0, "distance between columns": 20.0,
+                  "offset within a column": 10.0, "initial height": 0.2}
+"""TORCS's quickrace `Starting Grid` (config/raceman/quickrace.xml), overridden by the track's."""
+
+
+def grid_positions(track: Track, n_cars: int) -> tuple[np.ndarray, np.ndarray]:
+    """(s, n) of n_cars on the starting grid (track spec 7), m."""
+    g = dict(QUICKRACE_GRID)
+    g.update({k: v for k, v in track.grid.items() if k in QUICKRACE_GRID})
+    rows = max(int(g["rows"]), 1)
+    i = np.arange(n_cars)
+    s = track.length - (g["distance to start"] + (i // rows) * g["distance between columns"]
+                        + (i % rows) * g["offset within a column"])
+    w = track.width
+    a, b = (w, -w) if pole_on_left(track) else (0.0, w)
+    to_right = a + b * ((i % rows) + 1) / (rows + 1)
+    return np.mod(s, track.length), to_right - w / 2.0
+
+
+def angle_wrap(a):
+    """Wrap angles to [-pi, pi)."""
+    return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi

@@ -1,0 +1,325 @@
+"""`World`: cars on a track, advanced together in ticks of exactly 0.02 s.
+
+State lives in one array `World.state` (N, len(STATE_COLUMNS)), one row per car, Fortran order
+so that each column is a contiguous (N,) array; columns and units are listed in
+`madsim.physics.layout.STATE_COLUMNS` / `STATE_DOC` and exposed as read-only attributes
+(`world.x`, `world.speed`, ...). The physics is the compiled kernel in `kernel.py`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+
+import numba
+import numpy as np
+
+from madsim.cars.spec import CarSpec
+from madsim.physics import kernel
+from madsim.physics import layout as L
+from madsim.physics.tables import SKID, car_table, grid_positions, piece_table
+from madsim.tracks.track import Track
+
+DT = 0.002
+"""Physics sub-step, s (TORCS's simulation step)."""
+SUBSTEPS = 10
+"""Sub-steps per tick: controls are held for DT * SUBSTEPS = 0.02 s."""
+TICK = DT * SUBSTEPS
+
+NAN_POLICIES = ("raise", "zero")
+DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
+"""TORCS's damage factor per skill level (spec 4.12), handed to the contact solver."""
+
+
+_STEPPERS: dict = {}
+
+
+def _contact_stepper(broad_phase):
+    """Compiled sub-step loop that stops after the first sub-step at which the contact solver's
+    broad phase finds a car near something (there, and only there, `resolve` has work to do).
+
+    Built per broad-phase function and not cached on disk: it links the contact module's
+    compiled code, and numba's disk cache would not notice a change of that module.
+    """
+    stepper = _STEPPERS.get(broad_phase)
+    if stepper is None:
+        advance_car = kernel.advance_car
+        s_piece = L.S_PIECE
+
+        @numba.njit(error_model="numpy")
+        def stepper(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
+                    x, y, yaw, piece, bp, near):
+            for k in range(k0, nsub):
+                for i in range(st.shape[0]):
+                    advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
+                for i in range(st.shape[0]):
+                    piece[i] = int(st[i, s_piece])
+                near[0] = broad_phase(x, y, yaw, piece, *bp)
+                if near[0] != 0:
+                    return k + 1
+            return nsub
+
+        _STEPPERS[broad_phase] = stepper
+    return stepper
+
+
+def contact_available() -> bool:
+    """True if `madsim.physics.contact` (the contact solver) is installed."""
+    return importlib.util.find_spec("madsim.physics.contact") is not None
+
+
+class World:
+    """Cars on a track: `step(controls)` advances every car by 0.02 s (10 sub-steps of 0.002 s).
+
+    Args:
+        track: the `Track`.
+        cars: one `CarSpec` per car (N >= 1).
+        rng: the only source of randomness a World may use (the physics itself is deterministic).
+        fuel: consume fuel as TORCS does (spec 4.13); False keeps the initial fuel (and mass).
+        damage: add contact damage to `damage` (damage raises drag by damage/10000).
+        skill: TORCS driver skill level(s) for the tyre's skid term: "rookie", "amateur",
+            "semi-pro" (SCR/MADRaS default), "pro"; one string or one per car.
+        contact: use the contact solver (`madsim.physics.contact`) when it is installed.
+        nan_policy: "raise" rejects non-finite controls with a ValueError naming car and column;
+            "zero" replaces them by 0 and counts them per car in `nan_count`.
+        threads: share the cars among numba's threads when there are many (>= 64); results are
+            bit-identical either way. Off by default: it only pays on an otherwise idle machine.
+    """
+
+    def __init__(self, track: Track, cars: list[CarSpec], rng: np.random.Generator, *,
+                 fuel: bool = False, damage: bool = True, skill: str | list[str] = "semi-pro",
+                 contact: bool = True, nan_policy: str = "raise", threads: bool = False):
+        if not isinstance(track, Track):
+            raise TypeError(f"track must be a Track, got {type(track).__name__}")
+        cars = list(cars)
+        if not cars or not all(isinstance(c, CarSpec) for c in cars):
+            raise TypeError("cars must be a non-empty list of CarSpec")
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        if nan_policy not in NAN_POLICIES:
+            raise ValueError(f"nan_policy must be one of {NAN_POLICIES}, got {nan_policy!r}")
+        skills = [skill] * len(cars) if isinstance(skill, str) else list(skill)
+        if len(skills) != len(cars):
+            raise ValueError(f"skill: {len(skills)} values for {len(cars)} cars")
+        for s in skills:
+            if s not in SKID:
+                raise ValueError(f"skill must be one of {tuple(SKID)}, got {s!r}")
+        self.track = track
+        self.cars = tuple(cars)
+        self.rng = rng
+        self.fuel_on = bool(fuel)
+        self.damage_on = bool(damage)
+        self.skills = tuple(skills)
+        self.nan_policy = nan_policy
+        n = len(cars)
+        self.n_cars = n
+        self._cp, self._curve_w, self._curve_t = car_table(self.cars, skills)
+        self._pt, self._surf, self._tsc = piece_table(track)
+        self._top_gear = self._cp[:, L.C_TOP].astype(np.int64)
+        # cars are independent inside a call, so threads give bit-identical results
+        parallel = threads and n >= kernel.PARALLEL_MIN_CARS
+        self._advance = kernel.advance_parallel if parallel else kernel.advance
+        self.state = np.zeros((n, L.N_STATE), order="F")
+        self._info = np.zeros(2, dtype=np.int64)
+        self.nan_count = np.zeros(n, dtype=np.int64)
+        self.contact_wall = np.zeros(n, dtype=bool)
+        self.contact_car = np.zeros(n, dtype=bool)
+        self.contact_pairs: list[tuple[int, int]] = []
+        self.race_pos = np.arange(1, n + 1, dtype=np.int64)
+        self._solver = None
+        if contact and contact_available():
+            mod = importlib.import_module("madsim.physics.contact")
+            cp = self._cp
+            kw = {"damage_factor": DAMAGE_SKILL[skills[0]]} if len(set(skills)) == 1 else {}
+            self._solver = mod.ContactSolver(track, cp[:, L.C_HALF_LEN].copy(), cp[:, L.C_HALF_WID].copy(),
+                                             np.array([c.mass_total for c in self.cars]),
+                                             cp[:, L.C_IZZ].copy(), **kw)
+            self._piece_i = np.zeros(n, dtype=np.int64)
+            self._near = np.zeros(1, dtype=np.int64)
+            st = self.state
+            self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
+            self._stepper = _contact_stepper(self._solver.broad_phase_kernel)
+        self.reset()
+
+    # --- set-up -------------------------------------------------------------------------------
+
+    @property
+    def contact_active(self) -> bool:
+        """True if the contact solver runs (requested and installed)."""
+        return self._solver is not None
+
+    def reset(self, placements=None, *, gears=0) -> None:
+        """Put the cars on the starting grid (track spec 7, quickrace values with the track's
+        overrides) or at explicit placements, at rest or with a speed, and clear all counters.
+
+        placements: None, or array-like (N, 3) of (s [m], n [m, left +], speed [m/s]); the car
+        points along the centre-line tangent. gears: engaged gear per car (int or (N,)), default
+        neutral as TORCS; clipped to [-1, top gear].
+        """
+        n = self.n_cars
+        tr = self.track
+        if placements is None:
+            s, off = grid_positions(tr, n)
+            speed = np.zeros(n)
+        else:
+            pl = np.asarray(placements, dtype=np.float64)
+            if pl.shape != (n, 3):
+                raise ValueError(f"placements must have shape ({n}, 3) = (s, n, speed) per car, got {pl.shape}")
+            if not np.all(np.isfinite(pl)):
+                bad = np.argwhere(~np.isfinite(pl))[0]
+                raise ValueError(f"placements: car {bad[0]} {('s', 'n', 'speed')[bad[1]]} is not finite")
+            s, off, speed = np.mod(pl[:, 0], tr.length), pl[:, 1], pl[:, 2]
+        g = np.broadcast_to(np.asarray(gears), (n,))
+        if not np.all(np.isfinite(g.astype(np.float64))):
+            raise ValueError("gears must be finite")
+        g = np.clip(np.rint(g).astype(np.int64), -1, self._top_gear)
+        x, y, _, heading = tr.pose(s, off)
+        st = self.state
+        st[:] = 0.0
+        cp = self._cp
+        st[:, L.S_X], st[:, L.S_Y], st[:, L.S_YAW] = x, y, heading
+        st[:, L.S_VXG], st[:, L.S_VYG] = speed * np.cos(heading), speed * np.sin(heading)
+        st[:, L.S_WF] = speed / cp[:, L.C_RAD]
+        st[:, L.S_WR] = speed / cp[:, L.C_RAD + 2]
+        st[:, L.S_GEAR] = g
+        ratio = cp[np.arange(n), L.C_RATIO + g + 1]
+        driven_w = np.where(cp[:, L.C_DRIVEN_R] > 0, st[:, L.S_WR], st[:, L.S_WF])
+        st[:, L.S_WE] = np.clip(np.abs(driven_w * ratio), cp[:, L.C_TICK], cp[:, L.C_MAXI])
+        st[:, L.S_FUEL] = [c.fuel for c in self.cars]
+        for k in range(4):   # static loads of the dynamic mass
+            st[:, L.S_FZ + k] = cp[:, L.C_W0 + k] * (cp[:, L.C_MASS] + st[:, L.S_FUEL]) / cp[:, L.C_MASS]
+        st[:, L.S_PIECE] = tr.piece_at(s)
+        kernel.refresh(st, cp, self._pt, self._surf, self._tsc, False)
+        self.nan_count[:] = 0
+        self.contact_wall[:] = False
+        self.contact_car[:] = False
+        self.contact_pairs = []
+        if self._solver is not None:
+            self._solver.reset()
+        self._update_race_pos()
+
+    # --- the tick -------------------------------------------------------------------------------
+
+    def step(self, controls) -> None:
+        """Advance exactly 0.02 s: 10 sub-steps of 0.002 s with `controls` held.
+
+        controls: (N, 5) = steer [-1, 1] (left +), accel [0, 1], brake [0, 1], gear (integer,
+        -1 reverse, 0 neutral, 1..top), clutch [0, 1]. Out-of-range values are clipped (gear
+        rounded, then clipped); non-finite values follow `nan_policy`.
+        """
+        u = np.ascontiguousarray(controls, dtype=np.float64)
+        if u.shape != (self.n_cars, 5):
+            raise ValueError(f"controls must have shape ({self.n_cars}, 5) = "
+                             f"(steer, accel, brake, gear, clutch) per car, got {u.shape}")
+        info = self._info
+        kernel.check_controls(u, info)
+        if info[0]:
+            car, col = divmod(int(info[1]), 5)
+            if self.nan_policy == "raise":
+                raise ValueError(f"controls: car {car} {L.CONTROL_COLUMNS[col]} is "
+                                 f"{u[car, col]!r} (must be finite); {int(info[0])} non-finite value(s)")
+            u = u.copy()
+            bad = ~np.isfinite(u)
+            self.nan_count += bad.sum(axis=1)
+            u[bad] = 0.0
+        st = self.state
+        if self._solver is None:
+            self._advance(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
+                          u, SUBSTEPS, DT, self.fuel_on)
+        else:
+            self._step_with_contact(u)
+        if self.n_cars > 1:
+            self._update_race_pos()
+
+    def _step_with_contact(self, u: np.ndarray) -> None:
+        st, solver = self.state, self._solver
+        wall = np.zeros(self.n_cars, dtype=bool)
+        car = np.zeros(self.n_cars, dtype=bool)
+        pairs: list[tuple[int, int]] = []
+        cols, piece, near = self._contact_cols, self._piece_i, self._near
+        k = 0
+        while k < SUBSTEPS:
+            k = self._stepper(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
+                              u, k, SUBSTEPS, DT, self.fuel_on, cols[0], cols[1], cols[2], piece,
+                              solver.broad_phase_args, near)
+            if near[0] == 0:
+                break
+            rep = solver.resolve(*cols, piece, DT)
+            hit_w, hit_c = np.asarray(rep.wall, dtype=bool), np.asarray(rep.car, dtype=bool)
+            if hit_w.any() or hit_c.any():
+                wall |= hit_w
+                car |= hit_c
+                pairs.extend(tuple(p) for p in rep.pairs)
+                if self.damage_on:
+                    st[:, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
+                kernel.refresh(st, self._cp, self._pt, self._surf, self._tsc, True)
+        self.contact_wall[:] = wall
+        self.contact_car[:] = car
+        self.contact_pairs = pairs
+
+    def _update_race_pos(self) -> None:
+        st = self.state
+        order = np.lexsort((np.arange(self.n_cars), -st[:, L.S_DIST], -st[:, L.S_LAPS]))
+        self.race_pos[order] = np.arange(1, self.n_cars + 1)
+
+    # --- read-only views ---------------------------------------------------------------------------
+
+    def column(self, name: str) -> np.ndarray:
+        """Read-only (N,) view of one state column (see layout.STATE_COLUMNS)."""
+        v = self.state[:, L.S[name]]
+        v.flags.writeable = False
+        return v
+
+    @property
+    def time(self) -> float:
+        """Simulated time since reset, s."""
+        return float(self.state[0, L.S_TIME])
+
+    @property
+    def speed(self) -> np.ndarray:
+        """Horizontal speed |v|, m/s, (N,)."""
+        return np.hypot(self.state[:, L.S_VXG], self.state[:, L.S_VYG])
+
+    @property
+    def piece(self) -> np.ndarray:
+        return self.state[:, L.S_PIECE].astype(np.int64)
+
+    @property
+    def gear(self) -> np.ndarray:
+        return self.state[:, L.S_GEAR].astype(np.int64)
+
+    @property
+    def laps(self) -> np.ndarray:
+        return self.state[:, L.S_LAPS].astype(np.int64)
+
+    @property
+    def wheel_spin(self) -> np.ndarray:
+        """(N, 4) wheel spin rad/s in wheel order FR, FL, RR, RL (per axle, duplicated)."""
+        st = self.state
+        return np.stack([st[:, L.S_WF], st[:, L.S_WF], st[:, L.S_WR], st[:, L.S_WR]], axis=1)
+
+    @property
+    def wheel_load(self) -> np.ndarray:
+        """(N, 4) wheel loads, N, wheel order FR, FL, RR, RL."""
+        return np.array(self.state[:, L.S_FZ:L.S_FZ + 4])
+
+
+def _column_property(name: str, doc: str) -> property:
+    idx = L.S[name]
+
+    def get(self: World) -> np.ndarray:
+        v = self.state[:, idx]
+        v.flags.writeable = False
+        return v
+
+    return property(get, doc=f"(N,) {doc}")
+
+
+for _attr, _col in (("x", "x"), ("y", "y"), ("z", "z"), ("yaw", "yaw"), ("vx", "vx"), ("vy", "vy"),
+                    ("vx_global", "vx_g"), ("vy_global", "vy_g"), ("yaw_rate", "yaw_rate"),
+                    ("s", "s"), ("n", "n"), ("engine_speed", "engine_speed"),
+                    ("steer_angle", "steer_angle"), ("dist_raced", "dist_raced"),
+                    ("cur_lap_time", "cur_lap_time"), ("last_lap_time", "last_lap_time"),
+                    ("best_lap_time", "best_lap_time"), ("damage", "damage"), ("fuel", "fuel"),
+                    ("track_heading", "track_heading")):
+    setattr(World, _attr, _column_property(_col, L.STATE_DOC[_col]))

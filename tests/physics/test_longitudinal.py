@@ -1,0 +1,174 @@
+"""Straight-line physics against closed forms: coast-down, top speed, braking, shift-time cut.
+
+Closed forms use the car's own parameters (spec/torcs-car-format.md): drag 0.645 Cx A vx^2,
+rolling resistance = wheel load x surface coefficient, and the rotating wheels' inertia
+(I_wheel + I_axle/2 per wheel, spec 4.10) as extra translational mass I/R^2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from madsim.cars import load_car
+from madsim.cars.spec import G
+from madsim.physics import layout as L
+
+ROLL = 0.01   # rolling resistance of the test road
+
+
+def effective_mass(car):
+    """Mass plus free-wheel inertias over R^2 (neutral gear: no gearbox inertia)."""
+    i_wheel = car.wheel_inertia + np.repeat(car.axle_inertia, 2) / 2.0
+    return car.mass_total + float(np.sum(i_wheel / car.wheel_radius ** 2))
+
+
+def coast_decel(car, v):
+    return (car.scx2 * v * v + ROLL * car.mass_total * G) / effective_mass(car)
+
+
+def run(world, ticks, u):
+    for _ in range(ticks):
+        world.step(u)
+
+
+def test_coast_down_is_drag_plus_rolling_resistance(straight, ph):
+    car = ph.sedan()
+    w = ph.world_at(straight(rolling=ROLL), car, speed=30.0, gear=0)
+    u = np.zeros((1, 5))
+    run(w, 10, u)
+    for _ in range(5):
+        v1, t1 = float(w.vx[0]), w.time
+        run(w, 10, u)
+        v2, t2 = float(w.vx[0]), w.time
+        decel = (v1 - v2) / (t2 - t1)
+        # closed form at the mean speed (the v^2 term is convex: error < 1e-4 over 0.2 s)
+        assert decel == pytest.approx(coast_decel(car, 0.5 * (v1 + v2)), rel=5e-3)
+
+
+def _top_speed(car, gear):
+    """Speed (m/s) where full-throttle drive force equals drag + rolling resistance in `gear`."""
+    ratio, radius = car.overall_ratio(gear), car.driven_wheel_radius
+    v = np.linspace(1.0, car.redline_speed(gear), 200001)
+    drive = car.torque_at(v * ratio / radius) * ratio / radius
+    resist = car.scx2 * v * v + ROLL * car.mass_total * G
+    short = drive < resist
+    return float(v[np.argmax(short)]) if short.any() else float(v[-1])   # else: red line binds
+
+
+@pytest.mark.parametrize("start", [0.97, 1.03])
+def test_power_limited_top_speed(straight, ph, start):
+    car = load_car("madsim-buggy")           # no aero lift, no wings, drag-limited in top gear
+    top = car.top_gear
+    v_top = _top_speed(car, top)
+    assert v_top < 0.99 * car.redline_speed(top)
+    w = ph.world_at(straight(8000.0, rolling=ROLL), car, speed=start * v_top, gear=top)
+    u = np.array([[0.0, 1.0, 0.0, top, 0.0]])
+    run(w, 2000, u)                           # 40 s: about two time constants of m / (dF/dv)
+    v = float(w.vx[0])
+    # tyre slip (~1 %) raises the engine speed a little; the approach is from the start side
+    assert v == pytest.approx(v_top, rel=0.015)
+    assert (v - v_top) * (start - 1.0) > -0.01 * v_top
+
+
+def test_red_line_limits_top_speed(straight, ph):
+    car = ph.sedan(cx=0.1)                    # low drag: the rev limiter binds in top gear
+    top = car.top_gear
+    v_red = car.redline_speed(top)
+    assert _top_speed(car, top) >= 0.999 * v_red
+    w = ph.world_at(straight(8000.0, rolling=ROLL), car, speed=0.95 * v_red, gear=top)
+    u = np.array([[0.0, 1.0, 0.0, top, 0.0]])
+    run(w, 1500, u)
+    speeds = []
+    for _ in range(50):
+        w.step(u)
+        speeds.append(float(w.vx[0]))
+        assert w.engine_speed[0] <= car.revs_limiter * 1.01
+    # the car sits at the red line: driven wheels at most at limiter / G, the body a little slower
+    assert max(speeds) <= v_red * 1.001
+    assert min(speeds) >= 0.97 * v_red
+
+
+def _stop_distance(world, u):
+    s0 = float(world.state[0, 0]), float(world.state[0, 1])
+    for _ in range(5000):
+        world.step(u)
+        if world.speed[0] < 0.02:
+            break
+    return math.hypot(world.x[0] - s0[0], world.y[0] - s0[1])
+
+
+def test_braking_distance_brake_torque_limited(straight, ph):
+    car = ph.sedan(brake_max_pressure=2.0e6)   # weak brakes: no wheel locks
+    v0 = 100.0 / 3.6
+    w = ph.world_at(straight(rolling=ROLL), car, speed=v0, gear=0)
+    d = _stop_distance(w, np.array([[0.0, 0.0, 1.0, 0.0, 0.0]]))
+    share = np.array([1, 1, 0, 0]) * car.brake_front_share + np.array([0, 0, 1, 1]) * (1 - car.brake_front_share)
+    f_brake = float(np.sum(car.brake_kb * car.brake_max_pressure * share / car.wheel_radius))
+    assert f_brake < 0.5 * car.mass_total * G   # far from the tyre limit
+    f0 = f_brake + ROLL * car.mass_total * G
+    # m_eff dv/dt = -(f0 + k v^2)  =>  d = m_eff / (2 k) ln(1 + k v0^2 / f0)
+    k = car.scx2
+    expected = effective_mass(car) / (2 * k) * math.log(1 + k * v0 * v0 / f0)
+    assert d == pytest.approx(expected, rel=0.01)
+
+
+def test_braking_distance_tyre_limited(straight, ph):
+    """Brakes far stronger than the tyres: all wheels lock (no ABS in TORCS), slip = 1, so the
+    force is Fz mu lf(Fz) friction camber F(1) (1 + skid) per wheel with the quasi-static load
+    transfer of spec 5.2 step 4."""
+    car = ph.sedan(brake_max_pressure=1.0e8)
+    friction = 1.1
+    v0 = 100.0 / 3.6
+    w = ph.world_at(straight(rolling=ROLL, friction=friction), car, speed=v0, gear=0)
+    d = _stop_distance(w, np.array([[0.0, 0.0, 1.0, 0.0, 0.0]]))
+    from madsim.physics import kernel
+    shape1 = kernel.tyre_shape(1.0, car.mf_b[0], car.mf_c[0], car.mf_e[0], 0.3)[0]
+    m, L, h = car.mass_total, car.wheelbase, car.cg_height
+    kmu = car.tire_mu * (1 + 0.05 * np.sin(-18 * car.camber))
+
+    a_last = [9.0]
+
+    def decel(v):
+        a = a_last[0]
+        for _ in range(8):                      # fixed point: loads depend on the deceleration
+            fz_f = m * G * car.b / L + m * a * h / L
+            fz_r = m * G * car.a / L - m * a * h / L
+            fz = np.array([fz_f / 2, fz_f / 2, fz_r / 2, fz_r / 2])
+            lf = car.load_factor_min + (car.load_factor_max - car.load_factor_min) * np.exp(
+                car.load_factor_k * fz / car.operating_load)
+            force = float(np.sum(fz * kmu * lf)) * friction * shape1
+            a = (force + car.scx2 * v * v + ROLL * m * G) / m
+        a_last[0] = a
+        return a
+
+    expected, v, dt = 0.0, v0, 1e-3
+    while v > 0:
+        expected += v * dt
+        v -= decel(v) * dt
+    # below V_REG = 2 m/s the slip denominator is regularised: 0.2 m of 30 m at most
+    assert d == pytest.approx(expected, rel=0.02)
+
+
+def test_shift_cuts_drive_torque_for_the_shift_time(straight, ph):
+    car = ph.sedan()
+    w = ph.world_at(straight(rolling=ROLL), car, speed=15.0, gear=2)
+    u = np.array([[0.0, 1.0, 0.0, 2, 0.0]])
+    run(w, 25, u)
+    assert w.state[0, L.S_SHIFT] <= 0.0       # no shift pending
+    u[0, 3] = 3
+    ticks = round(car.shift_time / 0.02)
+    v = [float(w.vx[0])]
+    we = [float(w.engine_speed[0])]
+    for _ in range(ticks + 10):
+        w.step(u)
+        v.append(float(w.vx[0]))
+        we.append(float(w.engine_speed[0]))
+    assert w.gear[0] == 3
+    acc = np.diff(v) / 0.02
+    # ticks fully inside the cut: the car coasts (no drive torque, clutch open, free wheels)
+    for k in range(2, ticks - 1):
+        assert -acc[k] == pytest.approx(coast_decel(car, 0.5 * (v[k] + v[k + 1])), rel=0.02)
+    assert np.all(acc[ticks + 2:] > 1.0)       # drive is back after the shift time
