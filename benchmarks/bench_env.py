@@ -1,0 +1,127 @@
+"""MadrasEnv speed: env.step calls (or ticks) per second of wall time, in process.
+
+Run: python benchmarks/bench_env.py [--steps 20000] [--repeats 5] [--no-contact] [--profile CASE]
+
+Cases (one line each, best of --repeats runs after a warm-up; episode resets are included,
+as in training):
+- `sab`: one learner, no traffic, SingleAgentSimpleLapObs, normalised S-A-B actions, one tick
+  per step, on madsim-road (target >= 15,000 steps/s, issue 5);
+- `ts`: the same with T-S actions through the PID, latency 5 ticks per step: ticks/s through
+  the latency loop (target >= 15,000 ticks/s);
+- `traffic`: one S-A-B learner among 9 traffic cars (target >= 3,000 steps/s). The traffic
+  behaviours are madsim.agents.traffic's ConstVel when that layer exists, else a stand-in of
+  the same cost class (lane keeping at a fixed speed, a few float operations per tick).
+The learner's policy is a one-line lane keeper on the observation, so the car stays on the
+road; its cost (~1 us) is inside the figure. --no-contact runs the World without the contact
+solver (for comparison: the solver's broad phase runs every sub-step).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import importlib.util
+import math
+import pstats
+import time
+
+import numpy as np
+
+from madsim.envs.backends import LocalBackend
+from madsim.envs.madras_env import MadrasEnv
+
+
+class LaneKeeper:
+    """Stand-in traffic behaviour: steer to the centre line, hold ~40 km/h."""
+
+    def __init__(self, entry):
+        self.speed_kmh = 40.0
+
+    def reset(self, rng, info):
+        pass
+
+    def act(self, row):
+        steer = max(-1.0, min(1.0, row["angle"] - 0.5 * row["trackPos"]))
+        accel = 0.5 if row["speedX"] < self.speed_kmh else 0.0
+        return steer, accel, 0.0, 1
+
+
+def config(case: str) -> dict:
+    agent = {"observation": {"mode": "SingleAgentSimpleLapObs"},
+             "action": {"space": "TS" if case == "ts" else "SAB", "normalised": True},
+             "pid": {"latency": 5}, "target_speed": 16.0,
+             "dones": ["TimeOut", "OutOfTrack", "TurnBackward"]}
+    cfg = {"server": {"tracks": ["madsim-road"], "max_steps": 5000}, "agents": [agent]}
+    if case == "traffic":
+        agent["observation"] = {"mode": "SingleAgentInTrafficObs"}
+        cfg["traffic"] = [{"behaviour": "ConstVel", "target_speed": 11.1,
+                           "initial_distance": [20.0 + 40 * i, 20.0 + 40 * i]} for i in range(9)]
+    return cfg
+
+
+def policy(case: str):
+    if case == "ts":
+        action = np.array([0.0, 0.9])
+        return lambda obs: action
+
+    def lane_keeper(obs):
+        # obs[0] = angle / pi, obs[20] = trackPos; gentle throttle
+        steer = max(-1.0, min(1.0, 3.0 * float(obs[0]) - 0.4 * float(obs[20])))
+        return np.array([steer, 0.2, -1.0])
+    return lane_keeper
+
+
+def run(env, act, steps: int) -> tuple[float, int]:
+    """Seconds for `steps` env.step calls (resets included) and the ticks they drove."""
+    obs, _ = env.reset(seed=0)
+    ticks = 0
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        obs, _, term, trunc, info = env.step(act(obs))
+        ticks += info["ticks"]
+        if term or trunc:
+            obs, _ = env.reset()
+    return time.perf_counter() - t0, ticks
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--steps", type=int, default=20000)
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--no-contact", action="store_true")
+    p.add_argument("--profile", choices=["sab", "ts", "traffic"], default=None)
+    args = p.parse_args()
+    real_traffic = importlib.util.find_spec("madsim.agents.traffic") is not None
+    factory = None if real_traffic else LaneKeeper
+    contact = "off" if args.no_contact else "on"
+    for case in ("sab", "ts", "traffic"):
+        if args.profile and case != args.profile:
+            continue
+        env = MadrasEnv(config(case), backend=LocalBackend(contact=not args.no_contact),
+                        traffic_factory=factory)
+        act = policy(case)
+        steps = args.steps if case != "traffic" else max(1, args.steps // 4)
+        run(env, act, min(steps, 2000))                       # warm-up: numba, caches
+        if args.profile:
+            prof = cProfile.Profile()
+            prof.runcall(run, env, act, steps)
+            pstats.Stats(prof).sort_stats("tottime").print_stats(25)
+            continue
+        best = math.inf
+        for _ in range(args.repeats):
+            seconds, ticks = run(env, act, steps)
+            best = min(best, seconds)
+        rate = steps / best
+        if case == "ts":
+            rate = ticks / best
+            label = "ticks/s, T-S latency 5, 1 car"
+        elif case == "sab":
+            label = "steps/s, S-A-B, 1 car, SingleAgentSimpleLapObs"
+        else:
+            label = (f"steps/s, S-A-B, 1 learner + 9 traffic "
+                     f"({'ConstVel' if real_traffic else 'stand-in lane keeper'})")
+        print(f"env {case:8s} {rate:10,.0f} {label}, contact {contact}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

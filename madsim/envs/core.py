@@ -1,0 +1,457 @@
+"""The engine under both envs: learning agents and traffic on a backend, tick by tick.
+
+`MadrasCore` holds what the gymnasium env and the PettingZoo env share: the per-agent spaces
+(built once, never rebuilt, so a user's `action_space.seed()` is never lost), the per-agent
+drivers (action -> controls, rewards, dones), the traffic behaviours, the communication hub,
+the curriculum, and the tick loop. Both envs are thin shells around `reset` and `step`, which
+take and return dicts keyed by agent name.
+
+One env step (ARCHITECTURE.md, "the tick"): actions are checked (shape, NaN -> ValueError)
+and clipped to the action Box, messages are sent (communication), Gaussian action noise is
+added from the episode's rng and the result clipped again; then K ticks of 0.02 s (K = 1 for
+S-A-B, the PID latency for T-S; equal for every agent), each tick: controls of every car
+(T-S agents run their PID on the latest sensors, traffic behaviours act on theirs) ->
+backend tick -> sensors -> each agent's rewards (summed over the K ticks) and dones (checked
+every tick). An agent that is done leaves at that tick (its observation is the sensors of
+that tick), and its car brakes to a stop and stays where it is; the step ends early when no
+agent is left.
+
+Traffic behaviours come from `madsim.agents.traffic` (looked up when a config can draw
+traffic) or from the `traffic_factory` hook: a callable `factory(entry: TrafficConfig)` ->
+an object with `reset(rng, info)` (rng: numpy Generator; info: track_length m, track_width m,
+index, row, car, placement (s m, n m), tick_s) and `act(row) -> (steer, accel, brake, gear)`,
+row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+from madsim.agents.comms import CommHub
+from madsim.agents.curriculum import apply_stage, stage_index
+from madsim.agents.dones import DoneSet
+from madsim.agents.observations import ObservationBuilder
+from madsim.agents.pid import PIDController, TrackSpeedController, speed_gear
+from madsim.agents.rewards import TICK_S, RewardSet
+from madsim.envs.backends import LocalBackend
+from madsim.envs.config import (
+    AgentConfig,
+    ConfigError,
+    ScenarioConfig,
+    TrafficConfig,
+    action_space,
+    load_config,
+)
+from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
+from madsim.physics.sensors import INT_FIELDS, SENSOR_OFFSETS
+
+__all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
+
+_FIELDS = {name: (o, w, name in INT_FIELDS) for name, (o, w) in SENSOR_OFFSETS.items()}
+_STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
+
+
+class SensorRow(Mapping):
+    """One car's SCR sensors by name, read from its wire-order values (a list of 79 floats)
+    without building a dict: scalars as float (damage, gear, racePos as int), arrays as
+    lists; the same values as `SensorFrame.row(k)`."""
+
+    __slots__ = ("values",)
+
+    def __init__(self, values: list):
+        self.values = values
+
+    def __getitem__(self, name: str):
+        o, w, is_int = _FIELDS[name]
+        if w == 1:
+            return int(self.values[o]) if is_int else self.values[o]
+        return self.values[o:o + w]
+
+    def __iter__(self):
+        return iter(_FIELDS)
+
+    def __len__(self) -> int:
+        return len(_FIELDS)
+
+
+def default_traffic_factory() -> Callable[[TrafficConfig], Any]:
+    """The traffic layer's factory: `madsim.agents.traffic.make_behaviour`, else a class from
+    its `BEHAVIOURS` registry built with `from_config(entry)` or `cls(entry)`. ConfigError if
+    the traffic layer is not installed."""
+    try:
+        module = importlib.import_module("madsim.agents.traffic")
+    except ModuleNotFoundError as exc:
+        if exc.name != "madsim.agents.traffic":
+            raise
+        raise ConfigError("this scenario drives traffic cars, but the traffic behaviours "
+                          "(madsim.agents.traffic) are not installed; set server.traffic_count "
+                          "to [0, 0] or pass traffic_factory=", key="traffic") from None
+    make = getattr(module, "make_behaviour", None)
+    if make is not None:
+        return make
+    registry = module.BEHAVIOURS
+
+    def build(entry: TrafficConfig):
+        cls = registry[entry.behaviour]
+        return cls.from_config(entry) if hasattr(cls, "from_config") else cls(entry)
+    return build
+
+
+def episode_seed(seed: int | None, np_random: np.random.Generator) -> int:
+    """The seed of an episode: the one given to reset, else a draw from the env's generator."""
+    if seed is None:
+        return int(np_random.integers(2**63 - 1))
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an int >= 0 or None, got {seed!r}")
+    return int(seed)
+
+
+class _Driver:
+    """One learning agent in one curriculum stage: action -> controls every tick, its rewards
+    and dones. Per-episode state lives in its reward/done/PID objects (reset each episode)."""
+
+    def __init__(self, agent: AgentConfig, cfg: ScenarioConfig, space: gymnasium.spaces.Box):
+        s = cfg.server
+        self.name = agent.name
+        self.low = [float(v) for v in space.low]
+        self.high = [float(v) for v in space.high]
+        self.dim = len(self.low)
+        self.ts = agent.action.space == "TS"
+        self.normalised = agent.action.normalised
+        self.manual = agent.gear == "manual"
+        self.noise_std = float(agent.action_noise_std)
+        self.rewards = RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed)
+        self.dones = DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
+                                        track_limits=s.track_limits,
+                                        target_speed=agent.target_speed)
+        self.controller = None
+        if self.ts:
+            self.controller = TrackSpeedController(
+                PIDController.from_config(agent.pid), target_speed=agent.target_speed,
+                track_limits=s.track_limits, normalised=self.normalised)
+        self.ticks = agent.pid.latency if self.ts else 1
+        self.info = {"track_length": 0.0, "collision": False}
+        self._sab = _STOP
+        self._gear = 1.0
+
+    def check(self, action) -> list[float]:
+        """The action as a list of floats clipped into the Box; ValueError if malformed."""
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action for agent {self.name!r} is not numeric: {action!r}") from None
+        if a.shape != (self.dim,):
+            raise ValueError(f"action for agent {self.name!r} must have shape ({self.dim},), "
+                             f"got {a.shape}")
+        values = a.tolist()
+        for i, v in enumerate(values):
+            if not math.isfinite(v):
+                raise ValueError(f"action for agent {self.name!r} has a non-finite value at "
+                                 f"index {i}: {v}")
+        return [min(h, max(lo, v)) for v, lo, h in zip(values, self.low, self.high)]
+
+    def begin(self, action: list[float], rng: np.random.Generator) -> None:
+        """Take this step's (checked) action: add noise, map to controls / PID targets."""
+        if self.noise_std > 0.0:
+            noise = rng.normal(0.0, self.noise_std, self.dim).tolist()
+            action = [min(h, max(lo, v + e))
+                      for v, e, lo, h in zip(action, noise, self.low, self.high)]
+        if self.manual:
+            g = action[-1]
+            self._gear = float(round(-1.0 + 3.5 * (g + 1.0)) if self.normalised else round(g))
+        if self.ts:
+            self.controller.set_action(action)
+        elif self.normalised:
+            self._sab = (action[0], (action[1] + 1.0) / 2.0, (action[2] + 1.0) / 2.0)
+        else:
+            self._sab = (action[0], action[1], action[2])
+
+    def fill(self, u: np.ndarray, row: SensorRow) -> None:
+        """Write the controls of the coming tick into u (5,) from the latest sensors."""
+        if self.ts:
+            c = self.controller.act(row)
+            u[0], u[1], u[2], u[3] = c[0], c[1], c[2], c[3]
+        else:
+            u[0], u[1], u[2] = self._sab
+            u[3] = speed_gear(row["speedX"])
+        if self.manual:
+            u[3] = self._gear
+
+    def reset(self, row: SensorRow, track_length: float) -> None:
+        self.rewards.reset()
+        self.dones.reset()
+        if self.controller is not None:
+            self.controller.reset(row)
+        self.info["track_length"] = float(track_length)
+        self.info["collision"] = False
+        self._sab = _STOP
+
+
+@dataclasses.dataclass
+class _Stage:
+    cfg: ScenarioConfig
+    drivers: dict[str, _Driver]
+    traffic: list            # behaviour objects, one per cfg.traffic entry (None: not built)
+
+
+class MadrasCore:
+    """Agents, traffic, backend and tick loop shared by MadrasEnv and MadrasParallelEnv.
+
+    config: a path, a mapping or a ScenarioConfig; backend: LocalBackend() by default;
+    traffic_factory: see the module docstring (default: the traffic layer's).
+    """
+
+    def __init__(self, config=None, *, backend=None, traffic_factory=None):
+        cfg = config if isinstance(config, ScenarioConfig) else load_config(config)
+        self.config = cfg
+        self.names = cfg.agent_names
+        limits = cfg.server.track_limits
+        self.action_spaces = {a.name: action_space(a, limits) for a in cfg.agents}
+        self.builders = {a.name: ObservationBuilder.from_config(a.observation) for a in cfg.agents}
+        links = {a.name: a.communication for a in cfg.agents if a.communication is not None}
+        self.hub = CommHub(links, self.action_spaces) if links else None
+        self.observation_spaces = {}
+        for a in cfg.agents:
+            space = self.builders[a.name].space
+            if self.hub is not None and a.name in links:
+                comm = self.hub.space(a.name)
+                space = gymnasium.spaces.Box(np.concatenate([space.low, comm.low]),
+                                             np.concatenate([space.high, comm.high]),
+                                             dtype=np.float32)
+            self.observation_spaces[a.name] = space
+        ticks = {a.name: a.pid.latency if a.action.space == "TS" else 1 for a in cfg.agents}
+        if len(set(ticks.values())) > 1:
+            raise ConfigError("all agents of a scenario must take the same number of ticks per "
+                              "step (S-A-B: 1, T-S: pid.latency); got "
+                              + ", ".join(f"{n}: {k}" for n, k in ticks.items()), key="agents")
+        self.ticks_per_step = next(iter(ticks.values()))
+        self.backend = backend if backend is not None else LocalBackend()
+        self.backend.check(cfg)
+        self.assets = AssetCache()
+        self._factory = traffic_factory
+        if self._factory is None and self._may_drive_traffic():
+            self._factory = default_traffic_factory()
+        self._stages: dict[int, _Stage] = {}
+        self.progress = 0            # episodes or steps, the curriculum's unit
+        self.episode = -1            # index k of the current episode (order "fixed")
+        self.resets = 0
+        self.live: list[str] = []
+        self.plan: EpisodePlan | None = None
+        self.stage: _Stage = self._stage(0)
+
+    # --- configuration per curriculum stage -----------------------------------------------
+
+    def _may_drive_traffic(self) -> bool:
+        cfgs = [self.config]
+        if self.config.curriculum is not None:
+            cfgs += [apply_stage(self.config, st) for st in self.config.curriculum.stages]
+        for c in cfgs:
+            count = c.server.traffic_count
+            if c.traffic and (count is None or count[1] > 0):
+                return True
+        return False
+
+    def stage_index(self) -> int:
+        """Index of the curriculum stage in force at the current progress (0 without one)."""
+        cur = self.config.curriculum
+        return 0 if cur is None else stage_index(cur, self.progress)
+
+    def _stage(self, index: int) -> _Stage:
+        stage = self._stages.get(index)
+        if stage is None:
+            cfg = self.config
+            if cfg.curriculum is not None:
+                cfg = apply_stage(cfg, cfg.curriculum.stages[index])
+            drivers = {a.name: _Driver(a, cfg, self.action_spaces[a.name]) for a in cfg.agents}
+            stage = self._stages[index] = _Stage(cfg, drivers, [None] * len(cfg.traffic))
+        return stage
+
+    def _behaviour(self, stage: _Stage, j: int):
+        if stage.traffic[j] is None:
+            stage.traffic[j] = self._factory(stage.cfg.traffic[j])
+        return stage.traffic[j]
+
+    # --- episode --------------------------------------------------------------------------
+
+    def new_episode(self, seed: int | None, options: Mapping | None,
+                    np_random: np.random.Generator) -> tuple[dict, dict]:
+        """reset() of both envs: the episode seed (`seed`, else drawn from the env's
+        generator), the episode index (0 after a seeded reset, else +1; `options["episode"]`
+        overrides; other options are ignored) and the curriculum's episode count."""
+        ep_seed = episode_seed(seed, np_random)
+        self.episode = 0 if seed is not None else self.episode + 1
+        if options and "episode" in options:
+            episode = options["episode"]
+            if isinstance(episode, bool) or not isinstance(episode, (int, np.integer)) or episode < 0:
+                raise ValueError(f'options["episode"] must be an int >= 0, got {episode!r}')
+            self.episode = int(episode)
+        if self.resets and self._unit() == "episodes":
+            self.progress += 1
+        self.resets += 1
+        return self.reset(ep_seed, self.episode)
+
+    def _unit(self) -> str | None:
+        cur = self.config.curriculum
+        return None if cur is None else cur.unit
+
+    def reset(self, seed: int, episode: int) -> tuple[dict, dict]:
+        """Start episode `episode` from `seed`; returns (observations, infos) by agent."""
+        self.stage = stage = self._stage(self.stage_index())
+        cfg = stage.cfg
+        scenario_ss, obs_ss, action_ss, traffic_ss = np.random.SeedSequence(seed).spawn(4)
+        scenario_rng = np.random.default_rng(scenario_ss)
+        self.action_rng = np.random.default_rng(action_ss)
+        self.plan = plan = draw_plan(cfg, episode, seed, scenario_rng)
+        self.track = track = self.assets.track(plan.track)
+        cars = [self.assets.car(c) for c in plan.cars]
+        where = placements(cfg, plan, track, scenario_rng)
+        frame = self.backend.start((plan.track, plan.cars), track, cars, where,
+                                   noisy=cfg.server.observation_noise,
+                                   rng=np.random.default_rng(obs_ss))
+        self.frame = frame
+        self.rows = [SensorRow(v) for v in frame.flat.tolist()]
+        self.controls = np.zeros((len(plan.cars), 5))
+        self.agent_rows = {name: plan.row(name) for name in plan.agents}
+        self.behaviours = [self._behaviour(stage, j) for j in range(plan.n_traffic)]
+        for j, (b, ss) in enumerate(zip(self.behaviours, traffic_ss.spawn(plan.n_traffic))):
+            b.reset(np.random.default_rng(ss), {
+                "track_length": track.length, "track_width": track.width, "index": j,
+                "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
+                "placement": (float(where[j, 0]), float(where[j, 1]))})
+        self.live = list(plan.agents)
+        self.tick = 0
+        self._init_wait(cfg.server.init_wait * self.ticks_per_step)
+        for name in self.live:
+            stage.drivers[name].reset(self.rows[self.agent_rows[name]], track.length)
+        if self.hub is not None:
+            self.hub.reset()
+        shared = {"seed": plan.seed, "episode": plan.episode, "stage": self.stage_index(),
+                  "track": plan.track, "track_length": float(track.length), "cars": plan.cars,
+                  "traffic": tuple(t.behaviour for t in plan.traffic),
+                  "traffic_count": plan.n_traffic}
+        infos = {}
+        for name, car in zip(plan.agents, plan.agent_cars):
+            k = self.agent_rows[name]
+            infos[name] = dict(shared, car=car, row=k,
+                               placement=(float(where[k, 0]), float(where[k, 1])))
+        obs = {name: self._observe(name, self.frame, self.agent_rows[name]) for name in self.live}
+        return obs, infos
+
+    def _init_wait(self, ticks: int) -> None:
+        """MADRaS devel's init_wait: learners hold the stop action, traffic drives."""
+        for _ in range(ticks):
+            for name in self.live:
+                k = self.agent_rows[name]
+                self.controls[k, :3] = _STOP
+                self.controls[k, 3] = speed_gear(self.rows[k]["speedX"])
+            self._traffic_controls()
+            frame = self.backend.step(self.controls)
+            if frame is None:
+                raise ConnectionError("the simulator ended the race during init_wait")
+            self.frame = frame
+            self.rows = [SensorRow(v) for v in frame.flat.tolist()]
+
+    def _traffic_controls(self) -> None:
+        u, rows = self.controls, self.rows
+        for j, b in enumerate(self.behaviours):
+            steer, accel, brake, gear = b.act(rows[j])
+            u[j, 0], u[j, 1], u[j, 2], u[j, 3] = steer, accel, brake, gear
+
+    def _observe(self, name: str, frame, k: int) -> np.ndarray:
+        obs = self.builders[name].from_frame(frame, k)
+        if self.hub is not None and name in self.hub.buffers:
+            obs = np.concatenate([obs, self.hub.vector(name)])
+        return obs
+
+    # --- step -----------------------------------------------------------------------------
+
+    def step(self, actions: Mapping[str, Any]):
+        """One env step for every live agent; returns (obs, rewards, terminated, truncated,
+        infos), dicts over the agents that were live at the start of the step."""
+        if not self.live:
+            raise RuntimeError("the episode is over (or never started): call reset()")
+        for name in actions:
+            if name not in self.action_spaces:
+                raise ValueError(f"action for unknown agent {name!r}; agents: {self.names}")
+        drivers = self.stage.drivers
+        chosen = {}
+        for name in self.live:
+            if name not in actions:
+                raise ValueError(f"no action for live agent {name!r}")
+            chosen[name] = drivers[name].check(actions[name])
+        rows, agent_rows = self.rows, self.agent_rows
+        if self.hub is not None:
+            self.hub.send({n: rows[agent_rows[n]] for n in self.live}, chosen)
+        for name in self.live:
+            drivers[name].begin(chosen[name], self.action_rng)
+        # per agent: [reward, terms, terminated, truncated, fired, frame, ticks]
+        state = {name: [0.0, None, False, False, (), None, 0] for name in self.live}
+        running = [(name, drivers[name], agent_rows[name], state[name]) for name in self.live]
+        u = self.controls
+        backend = self.backend
+        frame = self.frame
+        for _ in range(self.ticks_per_step):
+            for name, drv, k, st in running:
+                drv.fill(u[k], rows[k])
+            if self.behaviours:
+                self._traffic_controls()
+            new = backend.step(u)
+            self.tick += 1
+            if new is None:                          # the server ended the race
+                for name, drv, k, st in running:
+                    st[3], st[4], st[5] = True, ("ServerEnded",), frame
+                running = []
+                break
+            frame = new
+            new_rows = [SensorRow(v) for v in frame.flat.tolist()]
+            hits = backend.collisions()
+            still = []
+            for entry in running:
+                name, drv, k, st = entry
+                prev, cur = rows[k], new_rows[k]
+                info = drv.info
+                info["collision"] = bool(hits[k]) if hits is not None else False
+                r, terms = drv.rewards(prev, cur, chosen[name], info)
+                st[0] += r
+                if st[1] is None:
+                    st[1] = terms
+                else:
+                    acc = st[1]
+                    for key, v in terms.items():
+                        acc[key] += v
+                st[6] += 1
+                term, trunc, fired = drv.dones(prev, cur, chosen[name], info)
+                if term or trunc:
+                    st[2], st[3], st[4], st[5] = term, trunc, tuple(fired), frame
+                    u[k, :3] = _STOP
+                    u[k, 4] = 0.0
+                else:
+                    still.append(entry)
+            rows = new_rows
+            running = still
+            if not running:
+                break
+        self.rows, self.frame = rows, frame
+        for name, drv, k, st in running:
+            st[5] = frame
+        obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}
+        for name, (r, terms, term, trunc, fired, fr, ticks) in state.items():
+            obs[name] = self._observe(name, fr, agent_rows[name])
+            rewards[name] = float(r)
+            terminated[name] = term
+            truncated[name] = trunc
+            infos[name] = {"reward_terms": terms or {}, "dones": fired, "ticks": ticks}
+        self.live = [n for n in self.live if not (terminated[n] or truncated[n])]
+        if self._unit() == "steps":
+            self.progress += 1
+        return obs, rewards, terminated, truncated, infos
+
+    def close(self) -> None:
+        self.backend.close()
