@@ -1,0 +1,597 @@
+"""Compiled kernels of the contact layer (see `madsim.physics.contact` for the model).
+
+Broad phase (walls by a conservative clearance, cars by box overlap on a neighbour list), the
+TORCS response rules (spec torcs-car-format.md 4.12) applied to pymunk's contacts, and the
+position-only settling passes. Plain loops over cars on arrays, car axis first, compiled with
+numba; no pymunk here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from madsim.tracks.kernels import GEO_A0, GEO_KIND, GEO_LEN, GEO_R, GEO_S0, locate_from
+
+# --- TORCS response constants (spec torcs-car-format.md 4.12) ---------------------------------
+WALL_YAW_SCALE = 10.0       # yaw-rate change divisor of the wall friction term
+WALL_YAW_MAX = 6.0          # rad/s, cap after a wall friction term
+CAR_YAW_MAX = 3.0           # rad/s, cap after a car-car impulse
+CAR_DAMAGE_PER_NS = 0.1     # damage points per N s of impulse
+FRONTAL_FACTOR = 1.5        # car-car damage factor for hits within +-60 deg of the nose
+FRONTAL_HALF_ANGLE = math.pi / 3.0
+SKILL_SEMI_PRO = 0.8        # TORCS damage skill factor (rookie 0, amateur 0.5, semi-pro 0.8, pro 1)
+
+# --- solver tuning ----------------------------------------------------------------------------
+SLOP_M = 1e-3               # extra separation beyond the measured penetration
+MIN_RADIUS_M = 0.5          # inner barrier radii are taken as at least this
+LEVEL_STRETCH_MAX = 20.0    # cars closer than (rad_i + rad_j) x this along the track are on one level
+OTHER_LEVEL_M = 0.1         # a wall contact whose car point is this far inside its own barrier
+                            # line belongs to another part of the track (bridges): ignored
+WALL_REACH_M = 0.02         # broad phase: consult pymunk when this close to a barrier (+ bulge)
+CAR_REACH_M = 0.0          # broad phase: consult pymunk when boxes overlap (contacts act after penetration)
+SKIN_M = 6.0                # neighbour-list skin
+REBUILD_M = 2.0             # rebuild the neighbour list when a car moved this far (< SKIN_M / 2)
+WINDOW_SLACK_M = 5.0        # extra barrier look-ahead that lets a wall clearance be reused
+SETTLE_ITERS = 16            # position-only passes over what is left after the pymunk contacts
+IDLE_CALLS = 50             # consultations a car stays in the pymunk space after its last contact
+
+# columns of the per-car constant table
+C_HL, C_HW, C_RAD, C_MASS, C_IZZ, C_GAIN, C_WIN = range(7)
+# entries of the scalar parameter array
+(P_LENGTH, P_MOVE_CAP, P_RMAX, P_E_CAR, P_SKILL, P_STRETCH, P_CHORD2) = range(7)
+
+
+# --- compiled kernels ------------------------------------------------------------------------------
+# All take the car axis first and assume boxes centred on (x, y), yaw = heading of the box's
+# long axis, and the track's piece geometry `geo` (madsim.tracks.kernels).
+
+
+@numba.njit(cache=True, inline="always")
+def _wrap(a):
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+@numba.njit(cache=True)
+def _heading(geo, i, q):
+    """Centre-line heading of piece i at q metres from its start."""
+    kind = geo[i, GEO_KIND]
+    if kind == 0.0:
+        return geo[i, GEO_A0]
+    if kind == 1.0:
+        return geo[i, GEO_A0] + q / geo[i, GEO_R]
+    return geo[i, GEO_A0] - q / geo[i, GEO_R]
+
+
+@numba.njit(cache=True)
+def _barrier_min(geo, bar, i, q, reach):
+    """Smallest (left, right) barrier offset and smallest inner barrier radius over s in
+    [s(i, q) - reach, s(i, q) + reach]."""
+    npieces = geo.shape[0]
+    bl, br, rc = np.inf, np.inf, np.inf
+    for direction in (-1, 1):
+        j = i
+        lo = q - reach if direction < 0 else q
+        hi = q if direction < 0 else q + reach
+        for _ in range(npieces):
+            ln = geo[j, GEO_LEN]
+            a = min(max(lo, 0.0), ln) / ln
+            b = min(max(hi, 0.0), ln) / ln
+            for u in (a, b):
+                bl = min(bl, bar[j, 0] + u * (bar[j, 1] - bar[j, 0]))
+                br = min(br, bar[j, 2] + u * (bar[j, 3] - bar[j, 2]))
+            rc = min(rc, bar[j, 4])
+            if direction < 0:
+                if lo >= 0.0:
+                    break
+                j = j - 1 if j > 0 else npieces - 1
+                lo += geo[j, GEO_LEN]
+                hi = geo[j, GEO_LEN]
+            else:
+                if hi <= ln:
+                    break
+                hi -= ln
+                lo = 0.0
+                j = j + 1 if j < npieces - 1 else 0
+    return bl, br, rc
+
+
+@numba.njit(cache=True)
+def _wall_margin(geo, bar, cars, prm, i, x, y, yaw, hint):
+    """Conservative clearance (m) between car i's box and the nearest barrier line, minus what
+    pymunk may already call a contact: the lateral extent of the box at the car's track
+    position against the narrowest barrier offset within reach, less the bulge of a curved
+    barrier over the box (rad^2 / 2 r), the polylines' chord error (chord^2 / 8 r) and
+    WALL_REACH_M. <= 0: consult pymunk."""
+    p, q, n = locate_from(geo, hint, x, y)
+    psi = yaw - _heading(geo, p, q)
+    lat = cars[i, C_HL] * abs(math.sin(psi)) + cars[i, C_HW] * abs(math.cos(psi))
+    bl, br, rc = _barrier_min(geo, bar, p, q, cars[i, C_WIN])
+    bulge = (cars[i, C_RAD] ** 2 / 2.0 + prm[P_CHORD2] / 8.0) / rc
+    return min(bl - (n + lat), br - (lat - n)) - bulge - WALL_REACH_M
+
+
+@numba.njit(cache=True)
+def _obb_sep(x, y, yaw, cars, i, j):
+    """Largest separating-axis gap between the boxes of cars i and j (m; < 0 = overlap, then
+    its magnitude is the smallest penetration) and that axis, pointing from i towards j."""
+    ci, si = math.cos(yaw[i]), math.sin(yaw[i])
+    cj, sj = math.cos(yaw[j]), math.sin(yaw[j])
+    dx, dy = x[j] - x[i], y[j] - y[i]
+    gap, bx, by = -np.inf, 1.0, 0.0
+    for k in range(4):
+        if k == 0:
+            ax, ay = ci, si
+        elif k == 1:
+            ax, ay = -si, ci
+        elif k == 2:
+            ax, ay = cj, sj
+        else:
+            ax, ay = -sj, cj
+        ri = cars[i, C_HL] * abs(ci * ax + si * ay) + cars[i, C_HW] * abs(ci * ay - si * ax)
+        rj = cars[j, C_HL] * abs(cj * ax + sj * ay) + cars[j, C_HW] * abs(cj * ay - sj * ax)
+        proj = dx * ax + dy * ay
+        g = abs(proj) - ri - rj
+        if g > gap:
+            gap = g
+            bx, by = (ax, ay) if proj >= 0.0 else (-ax, -ay)
+    return gap, bx, by
+
+
+@numba.njit(cache=True)
+def _build_pairs(x, y, cars, rmax, vref, pairs):
+    """Neighbour list: all pairs i < j with centre distance < rad_i + rad_j + SKIN_M, found
+    through a hashed uniform grid. Returns the count, or -1 if `pairs` is too small."""
+    n = x.shape[0]
+    cell = 2.0 * rmax + SKIN_M
+    size = 1
+    while size < 2 * n:
+        size *= 2
+    cx = np.empty(n, dtype=np.int64)
+    cy = np.empty(n, dtype=np.int64)
+    h = np.empty(n, dtype=np.int64)
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in range(n):
+        fx, fy = x[i] / cell, y[i] / cell
+        cx[i] = math.floor(fx) if abs(fx) < 1e15 else 0
+        cy[i] = math.floor(fy) if abs(fy) < 1e15 else 0
+        h[i] = ((cx[i] * 73856093) ^ (cy[i] * 19349663)) & (size - 1)
+        start[h[i] + 1] += 1
+        vref[i, 0], vref[i, 1] = x[i], y[i]
+    for b in range(size):
+        start[b + 1] += start[b]
+    fill = start.copy()
+    items = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        items[fill[h[i]]] = i
+        fill[h[i]] += 1
+    count = 0
+    for i in range(n):
+        for ox in range(-1, 2):
+            for oy in range(-1, 2):
+                gx, gy = cx[i] + ox, cy[i] + oy
+                b = ((gx * 73856093) ^ (gy * 19349663)) & (size - 1)
+                for k in range(start[b], start[b + 1]):
+                    j = items[k]
+                    if j <= i or cx[j] != gx or cy[j] != gy:
+                        continue
+                    reach = cars[i, C_RAD] + cars[j, C_RAD] + SKIN_M
+                    if (x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2 < reach * reach:
+                        if count >= pairs.shape[0]:
+                            return -1
+                        pairs[count, 0], pairs[count, 1] = i, j
+                        count += 1
+    return count
+
+
+@numba.njit(cache=True)
+def _broad_phase(x, y, yaw, piece, geo, bar, cars, prm, wall_cache, vref, pairs, meta, flags, slack):
+    """Flag cars near a barrier (bit 1) or overlapping another car (bit 2); `slack`: clearance
+    to the barriers beyond the reach allowance that is guaranteed now (m, 0 if near). Returns
+    the number of flagged cars, -1 if `pairs` overflowed, -2 - i if car i's piece index is out
+    of range. Updates the clearance cache and the neighbour list. Cars with a non-finite pose
+    are ignored."""
+    n = x.shape[0]
+    move_cap = prm[P_MOVE_CAP]
+    near = 0
+    for i in range(n):
+        flags[i] = 0
+        if piece[i] < 0 or piece[i] >= geo.shape[0]:
+            return -2 - i
+        if not (math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(yaw[i])):
+            slack[i] = 0.0
+            continue          # a car whose state went bad touches nothing (and is not located)
+        # (plain 2-D indexing, no row views: views cost reference counting in this loop)
+        moved = math.sqrt((x[i] - wall_cache[i, 0]) ** 2 + (y[i] - wall_cache[i, 1]) ** 2)
+        used = cars[i, C_GAIN] * moved + cars[i, C_RAD] * abs(_wrap(yaw[i] - wall_cache[i, 2]))
+        if moved < move_cap and used < wall_cache[i, 3]:
+            slack[i] = wall_cache[i, 3] - used   # its clearance cannot be used up yet
+            continue
+        margin = _wall_margin(geo, bar, cars, prm, i, x[i], y[i], yaw[i], piece[i])
+        slack[i] = max(margin, 0.0)
+        if margin > 0.0 and move_cap > 0.0:
+            wall_cache[i, 0], wall_cache[i, 1], wall_cache[i, 2] = x[i], y[i], yaw[i]
+            wall_cache[i, 3] = margin
+        else:
+            wall_cache[i, 3] = -1.0
+        if margin <= 0.0:
+            flags[i] = 1
+            near += 1
+    if n < 2:
+        return near
+    rebuild = meta[0] == 0
+    if not rebuild:
+        for i in range(n):
+            if (x[i] - vref[i, 0]) ** 2 + (y[i] - vref[i, 1]) ** 2 > REBUILD_M * REBUILD_M:
+                rebuild = True
+                break
+    if rebuild:
+        count = _build_pairs(x, y, cars, prm[P_RMAX], vref, pairs)
+        if count < 0:
+            return -1
+        meta[0], meta[1] = 1, count
+        meta[2] += 1
+    for k in range(meta[1]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        reach = cars[i, C_RAD] + cars[j, C_RAD] + CAR_REACH_M
+        if (x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2 > reach * reach:
+            continue
+        if (_obb_sep(x, y, yaw, cars, i, j)[0] < CAR_REACH_M
+                and _same_level(geo, prm, cars, piece, x, y, i, j)):
+            for m in (i, j):
+                if flags[m] == 0:
+                    near += 1
+                flags[m] |= 2
+    return near
+
+
+@numba.njit(cache=True)
+def _membership(flags, member, idle, add, drop):
+    """Which cars enter the pymunk space (flagged, not yet in) and which leave (idle for more
+    than IDLE_CALLS consultations). Updates `member` and `idle`; returns the two counts."""
+    n_add = n_drop = 0
+    for i in range(flags.shape[0]):
+        if flags[i]:
+            idle[i] = 0
+            if not member[i]:
+                member[i] = True
+                add[n_add] = i
+                n_add += 1
+        elif member[i]:
+            idle[i] += 1
+            if idle[i] > IDLE_CALLS:
+                member[i] = False
+                drop[n_drop] = i
+                n_drop += 1
+    return n_add, n_drop
+
+
+@numba.njit(cache=True)
+def _fill_poses(slots, x, y, yaw, poses):
+    """pymunk.batch pose buffer (x, y, angle per body, in space order; static rows untouched)."""
+    for k in range(slots.shape[0]):
+        i = slots[k]
+        if i >= 0 and math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(yaw[i]):
+            poses[3 * k], poses[3 * k + 1], poses[3 * k + 2] = x[i], y[i], yaw[i]
+        elif i >= 0:          # never hand pymunk a NaN: park the body far from everything
+            poses[3 * k], poses[3 * k + 1], poses[3 * k + 2] = -1e7 - 10.0 * k, -1e7, 0.0
+
+
+_UNKNOWN = -(1 << 40)
+
+
+@numba.njit(cache=True)
+def _code(keys, codes, body_id):
+    """Car index (>= 0) or -1 - material of a pymunk body id; _UNKNOWN if not ours."""
+    k = np.searchsorted(keys, body_id)
+    if k < keys.shape[0] and keys[k] == body_id:
+        return codes[k]
+    return _UNKNOWN
+
+
+@numba.njit(cache=True)
+def _corner(x, y, yaw, cars, i, k):
+    """Corner k (0..3) of car i's box, global frame."""
+    sx = 1.0 if k == 0 or k == 3 else -1.0
+    sy = 1.0 if k < 2 else -1.0
+    c, s = math.cos(yaw[i]), math.sin(yaw[i])
+    lx, ly = sx * cars[i, C_HL], sy * cars[i, C_HW]
+    return x[i] + lx * c - ly * s, y[i] + lx * s + ly * c
+
+
+@numba.njit(cache=True)
+def _corner_excess(geo, bar, x, y, yaw, piece, cars, i, k):
+    """How far corner k of car i is beyond the exact barrier line (m, <= 0 inside) and the
+    unit inward normal there (TORCS's corner test, track spec 10.1)."""
+    px, py = _corner(x, y, yaw, cars, i, k)
+    return _point_excess(geo, bar, piece[i], px, py)
+
+
+@numba.njit(cache=True)
+def _point_excess(geo, bar, hint, px, py):
+    """How far a point is beyond the nearer barrier line (m, <= 0 inside), located by walking
+    from piece `hint`, and the unit inward normal there."""
+    p, q, n = locate_from(geo, hint, px, py)
+    u = min(max(q / geo[p, GEO_LEN], 0.0), 1.0)
+    a = _heading(geo, p, q)
+    if n >= 0.0:
+        b = bar[p, 0] + u * (bar[p, 1] - bar[p, 0])
+        return n - b, math.sin(a), -math.cos(a)
+    b = bar[p, 2] + u * (bar[p, 3] - bar[p, 2])
+    return -n - b, -math.sin(a), math.cos(a)
+
+
+@numba.njit(cache=True)
+def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
+    """TORCS barrier rule (car spec 4.12 steps 2-6) for car i at point (px, py), wall normal
+    (nx, ny) pointing away from the wall, material row `mat` = (friction, rebound, dammage)."""
+    rx, ry = px - x[i], py - y[i]
+    vn = (vx[i] - w[i] * ry) * nx + (vy[i] + w[i] * rx) * ny
+    speed = max(1.0, math.sqrt(vx[i] * vx[i] + vy[i] * vy[i]))
+    vcn = vx[i] * nx + vy[i] * ny
+    cosa = vcn / speed
+    kf = mat[0] * vn
+    vx[i] -= nx * kf
+    vy[i] -= ny * kf
+    w[i] -= (nx * rx + ny * ry) * kf / WALL_YAW_SCALE
+    w[i] = min(max(w[i], -WALL_YAW_MAX), WALL_YAW_MAX)
+    if vn < 0.0:
+        damage[i] += mat[2] * (0.5 * (cosa * vcn) ** 2 + 0.005 * abs(1.0 - cosa) * speed) * prm[P_SKILL]
+        vx[i] -= nx * vn * mat[1]
+        vy[i] -= ny * vn * mat[1]
+
+
+@numba.njit(cache=True)
+def _car_response(i, j, nx, ny, px, py, x, y, yaw, vx, vy, w, cars, prm, damage):
+    """Car-car impulse at (px, py) along (nx, ny) (pushing i away from j) if the points
+    approach. Returns the impulse, N s (0 when separating)."""
+    rix, riy = px - x[i], py - y[i]
+    rjx, rjy = px - x[j], py - y[j]
+    vrx = (vx[i] - w[i] * riy) - (vx[j] - w[j] * rjy)
+    vry = (vy[i] + w[i] * rix) - (vy[j] + w[j] * rjx)
+    vrn = vrx * nx + vry * ny
+    if vrn >= 0.0:
+        return 0.0
+    ci = rix * ny - riy * nx
+    cj = rjx * ny - rjy * nx
+    k = (1.0 / cars[i, C_MASS] + 1.0 / cars[j, C_MASS] + ci * ci / cars[i, C_IZZ]
+         + cj * cj / cars[j, C_IZZ])
+    jn = -(1.0 + prm[P_E_CAR]) * vrn / k
+    for m, sign, cr, rx, ry in ((i, 1.0, ci, rix, riy), (j, -1.0, cj, rjx, rjy)):
+        vx[m] += sign * jn * nx / cars[m, C_MASS]
+        vy[m] += sign * jn * ny / cars[m, C_MASS]
+        w[m] = min(max(w[m] + sign * jn * cr / cars[m, C_IZZ], -CAR_YAW_MAX), CAR_YAW_MAX)
+        c, s = math.cos(yaw[m]), math.sin(yaw[m])
+        ang = math.atan2(-rx * s + ry * c, rx * c + ry * s)
+        factor = FRONTAL_FACTOR if abs(ang) < FRONTAL_HALF_ANGLE else 1.0
+        damage[m] += CAR_DAMAGE_PER_NS * jn * factor * prm[P_SKILL]
+    return jn
+
+
+@numba.njit(cache=True)
+def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar, prm,
+             wall, car, damage, blocked, moved, travel, pair_out):
+    """Apply the contacts pymunk found (batch arbiter arrays: velocities, damage, separation).
+    Returns the number of car pairs written to `pair_out`."""
+    blocked[:] = False
+    moved[:] = False
+    travel[:] = 0.0
+    count = 0
+    narb = ints.shape[0] // 3
+    # records: car i, kind (0 wall, 1 car), other (material or car j), normal, point, depth
+    ri = np.empty(narb, dtype=np.int64)
+    rk = np.empty(narb, dtype=np.int64)
+    ro = np.empty(narb, dtype=np.int64)
+    rf = np.empty((narb, 5))
+    nrec = 0
+    for a in range(narb):
+        ca = _code(keys, codes, ints[3 * a])
+        cb = _code(keys, codes, ints[3 * a + 1])
+        cnt = ints[3 * a + 2]
+        f = floats[12 * a: 12 * a + 12]
+        nx, ny = f[0], f[1]
+        dmax, best = 0.0, -1
+        for c in range(cnt):
+            if -f[6 + 5 * c] > dmax:
+                dmax, best = -f[6 + 5 * c], c
+        if best < 0 or ca == _UNKNOWN or cb == _UNKNOWN:
+            continue
+        if ca >= 0 and cb >= 0:               # car-car: i < j, normal pushes i away from j
+            i, j = min(ca, cb), max(ca, cb)
+            if not _same_level(geo, prm, cars, piece, x, y, i, j):
+                continue
+            sgn = -1.0 if i == ca else 1.0
+            px = py = 0.0
+            for c in range(cnt):
+                px += 0.5 * (f[2 + 5 * c] + f[4 + 5 * c]) / cnt
+                py += 0.5 * (f[3 + 5 * c] + f[5 + 5 * c]) / cnt
+            ri[nrec], rk[nrec], ro[nrec] = i, 1, j
+            rf[nrec, 0], rf[nrec, 1], rf[nrec, 2], rf[nrec, 3], rf[nrec, 4] = sgn * nx, sgn * ny, px, py, dmax
+        elif ca < 0 and cb >= 0 or ca >= 0 and cb < 0:   # wall: normal away from the wall
+            i, m = (cb, -1 - ca) if cb >= 0 else (ca, -1 - cb)
+            sgn = 1.0 if cb >= 0 else -1.0
+            off = 4 if cb >= 0 else 2                     # the car-side point
+            px, py = f[off + 5 * best], f[off + 1 + 5 * best]
+            if cnt == 2 and abs(f[6] - f[11]) < 1e-9:   # flat contact: middle of the two points
+                px, py = 0.5 * (f[off] + f[off + 5]), 0.5 * (f[off + 1] + f[off + 6])
+            excess, sx, sy = _point_excess(geo, bar, piece[i], px, py)
+            if excess < -OTHER_LEVEL_M or sgn * nx * sx + sgn * ny * sy <= 0.0:
+                continue     # another level's wall, or seen from behind: the projection handles it
+            ri[nrec], rk[nrec], ro[nrec] = i, 0, m
+            rf[nrec, 0], rf[nrec, 1], rf[nrec, 2], rf[nrec, 3], rf[nrec, 4] = sgn * nx, sgn * ny, px, py, dmax
+        else:
+            continue
+        nrec += 1
+    # canonical order (insertion sort on car, kind, other, point): independent of pymunk's order
+    order = np.arange(nrec)
+    for a in range(1, nrec):
+        b = a
+        while b > 0 and _rec_less(ri, rk, ro, rf, order[b], order[b - 1]):
+            order[b], order[b - 1] = order[b - 1], order[b]
+            b -= 1
+    # walls: per car, one response per wall direction at its deepest point
+    used = np.zeros(nrec, dtype=np.bool_)
+    a = 0
+    while a < nrec:
+        i = ri[order[a]]
+        e = a
+        while e < nrec and ri[order[e]] == i and rk[order[e]] == 0:
+            e += 1
+        if e == a:
+            a += 1
+            continue
+        pushx = pushy = 0.0
+        while True:
+            g = -1
+            for b in range(a, e):
+                r = order[b]
+                if not used[r] and (g < 0 or rf[r, 4] > rf[g, 4]):
+                    g = r
+            if g < 0:
+                break
+            for b in range(a, e):
+                r = order[b]
+                if rf[r, 0] * rf[g, 0] + rf[r, 1] * rf[g, 1] > 0.9:
+                    used[r] = True
+            need = rf[g, 4] - (pushx * rf[g, 0] + pushy * rf[g, 1])
+            if need > 0.0:
+                pushx += need * rf[g, 0]
+                pushy += need * rf[g, 1]
+            _wall_response(i, rf[g, 0], rf[g, 1], rf[g, 2], rf[g, 3], mat[ro[g]], x, y, vx, vy, w,
+                               prm, damage)
+        norm = math.sqrt(pushx * pushx + pushy * pushy)
+        if norm > 0.0:
+            x[i] += pushx * (1.0 + SLOP_M / norm)
+            y[i] += pushy * (1.0 + SLOP_M / norm)
+            travel[i] += norm + SLOP_M
+        wall[i] = True
+        blocked[i] = True
+        moved[i] = True
+        a = e
+    # cars, in canonical order
+    for b in range(nrec):
+        r = order[b]
+        if rk[r] != 1:
+            continue
+        i, j = ri[r], ro[r]
+        nx, ny, d = rf[r, 0], rf[r, 1], rf[r, 4] + SLOP_M
+        _car_response(i, j, nx, ny, rf[r, 2], rf[r, 3], x, y, yaw, vx, vy, w, cars, prm, damage)
+        _separate(i, j, nx, ny, d, x, y, cars, blocked, travel)
+        car[i] = car[j] = True
+        moved[i] = moved[j] = True
+        count = _add_pair(pair_out, count, i, j)
+    return count
+
+@numba.njit(cache=True)
+def _same_level(geo, prm, cars, piece, x, y, i, j):
+    """False if cars i and j are far apart along the track although close in plan (one passes
+    over the other on a bridge): their distances from start differ by more than touching boxes
+    can."""
+    pi, qi, _ = locate_from(geo, piece[i], x[i], y[i])
+    pj, qj, _ = locate_from(geo, piece[j], x[j], y[j])
+    d = abs(geo[pi, GEO_S0] + qi - geo[pj, GEO_S0] - qj) % prm[P_LENGTH]
+    d = min(d, prm[P_LENGTH] - d)
+    return d <= (cars[i, C_RAD] + cars[j, C_RAD]) * prm[P_STRETCH] + 1.0
+
+
+@numba.njit(cache=True)
+def _rec_less(ri, rk, ro, rf, a, b):
+    if ri[a] != ri[b]:
+        return ri[a] < ri[b]
+    if rk[a] != rk[b]:
+        return rk[a] < rk[b]
+    if ro[a] != ro[b]:
+        return ro[a] < ro[b]
+    if rf[a, 2] != rf[b, 2]:
+        return rf[a, 2] < rf[b, 2]
+    return rf[a, 3] < rf[b, 3]
+
+
+@numba.njit(cache=True)
+def _separate(i, j, nx, ny, d, x, y, cars, blocked, travel):
+    """Move cars i (along +n) and j (along -n) apart by d in total: split by mass, or all by the
+    one that a wall has not already pushed. `travel` accumulates how far each car moved."""
+    if blocked[i] and not blocked[j]:
+        si, sj = 0.0, 1.0
+    elif blocked[j] and not blocked[i]:
+        si, sj = 1.0, 0.0
+    else:
+        mi, mj = cars[i, C_MASS], cars[j, C_MASS]
+        si, sj = mj / (mi + mj), mi / (mi + mj)
+    x[i] += nx * d * si
+    y[i] += ny * d * si
+    x[j] -= nx * d * sj
+    y[j] -= ny * d * sj
+    travel[i] += d * si
+    travel[j] += d * sj
+
+
+@numba.njit(cache=True)
+def _add_pair(pair_out, count, i, j):
+    for k in range(count):
+        if pair_out[k, 0] == i and pair_out[k, 1] == j:
+            return count
+    if count < pair_out.shape[0]:
+        pair_out[count, 0], pair_out[count, 1] = i, j
+        count += 1
+    return count
+
+
+@numba.njit(cache=True)
+def _push_inside(i, x, y, yaw, piece, cars, geo, bar):
+    """Move car i so that its four corners are inside the exact barrier lines (TORCS's corner
+    test), along the inward normal at the worst corner. Returns True if it moved."""
+    pushed = False
+    for _ in range(3):
+        worst, wx, wy = 0.0, 0.0, 0.0
+        for k in range(4):
+            e, nx, ny = _corner_excess(geo, bar, x, y, yaw, piece, cars, i, k)
+            if e > worst:
+                worst, wx, wy = e, nx, ny
+        if worst <= 0.0:
+            break
+        x[i] += wx * (worst + SLOP_M)
+        y[i] += wy * (worst + SLOP_M)
+        pushed = True
+    return pushed
+
+
+@numba.njit(cache=True)
+def _settle(x, y, yaw, piece, cars, geo, bar, prm, pairs, meta, flags, slack, wall, car, blocked,
+            moved, travel, pair_out, count):
+    """Position-only relaxation after the pymunk contacts, with exact tests: corners of cars
+    near a barrier, or moved further than their clearance allows, inside the barrier lines;
+    boxes of moved cars not overlapping (pushed apart along the smallest-overlap axis).
+    Returns the updated pair count."""
+    n = x.shape[0]
+    stamp = np.full(n, -9, dtype=np.int64)      # pass in which each car last moved
+    for i in range(n):
+        if moved[i]:
+            stamp[i] = -1
+    for it in range(SETTLE_ITERS + 1):
+        for i in range(n):
+            if stamp[i] < it - 1 and not (it == 0 and flags[i] & 1):
+                continue
+            if (flags[i] & 1 or cars[i, C_GAIN] * travel[i] >= slack[i]) and \
+                    _push_inside(i, x, y, yaw, piece, cars, geo, bar):
+                wall[i] = blocked[i] = moved[i] = True
+                stamp[i] = it
+        if it == SETTLE_ITERS:
+            break
+        changed = False
+        for k in range(meta[1]):
+            i, j = pairs[k, 0], pairs[k, 1]
+            if stamp[i] < it - 1 and stamp[j] < it - 1:
+                continue
+            gap, ax, ay = _obb_sep(x, y, yaw, cars, i, j)
+            if gap < 0.0 and _same_level(geo, prm, cars, piece, x, y, i, j):
+                _separate(i, j, -ax, -ay, SLOP_M - gap, x, y, cars, blocked, travel)
+                car[i] = car[j] = moved[i] = moved[j] = True
+                stamp[i] = stamp[j] = it
+                count = _add_pair(pair_out, count, i, j)
+                changed = True
+        if not changed:
+            break
+    return count
