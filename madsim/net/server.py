@@ -4,11 +4,14 @@ end-of-race messages (spec/scr-protocol.md sections 1-4, 7, 12, 14).
 `ScrServer` owns the sockets and the race loop; the World (physics) and the SensorSuite
 (sensor semantics) do the work, `madsim.net.protocol` does the bytes. Clock modes:
 - `sync`: wait for every client's reply each tick (deterministic, as fast as the clients);
-  stale datagrams are drained before each state is sent; a client silent for longer than
-  `client_deadline_s` is switched to timeout behaviour with a warning.
+  stale datagrams are drained before each state is sent (kept only if they ask for a restart),
+  so an extra reply never shifts later commands; a client silent for longer than
+  `client_deadline_s` is switched to timeout behaviour with a warning, and back to waiting as
+  soon as it answers again (its newest late answer is used).
 - `timeout`: TORCS's behaviour: per car in turn, send, wait up to `timeout_ms`, read exactly
   one datagram (no draining), reuse the previous controls on silence.
-- `realtime`: like sync, but each tick lasts 20 ms of wall time; silence reuses controls.
+- `realtime`: like sync, but each tick lasts 20 ms of wall time; silence reuses controls (or
+  the newest late answer).
 
 Departure from TORCS, on purpose: during a race only datagrams from the identified client's
 address are read as its controls; others are counted as foreign and dropped, so stray traffic
@@ -29,7 +32,7 @@ from typing import Callable
 import numpy as np
 
 from madsim.net import protocol as P
-from madsim.physics.sensors import FOCUS_NONE, SensorSuite
+from madsim.physics.sensors import FOCUS_NONE, SENSOR_OFFSETS, SensorSuite
 
 TICK_S = 0.02
 MODES = ("sync", "timeout", "realtime")
@@ -37,7 +40,7 @@ COUNTDOWN_TICKS = 49          # TORCS polls robots ~49 times during the start co
 MAX_DAMAGE = 10000.0          # a car above this is out of the race (TORCS default)
 CSV_FIELDS = ("tick", "time", "car", "x", "y", "yaw", "distFromStart", "trackPos", "angle",
               "speedX", "speedY", "rpm", "gear", "laps", "curLapTime", "lastLapTime", "damage",
-              "steer", "accel", "brake", "clutch")
+              "steer", "accel", "brake", "gear_request", "clutch")
 
 
 class ServerError(RuntimeError):
@@ -54,20 +57,21 @@ class ServerStats:
     bad_datagrams: int = 0        # not well-formed control messages (still applied, as TORCS)
     foreign_datagrams: int = 0    # from an address other than the car's client: dropped
     ignored_datagrams: int = 0    # non-identification datagrams before the race: no reply
-    drained_datagrams: int = 0    # extra replies dropped in sync mode
+    drained_datagrams: int = 0    # stale or extra replies dropped (sync / realtime modes)
     timeouts: int = 0             # ticks on which a car's controls were reused
     laps: list = field(default_factory=list)   # (race, car, lap, lap time s)
 
 
 class _Car:
-    """One scr_server instance: its socket, client address and last controls."""
+    """One scr_server instance: its socket and port, client address and last controls."""
 
-    def __init__(self, index: int, sock: socket.socket):
+    def __init__(self, index: int, sock: socket.socket, port: int, controls: np.ndarray):
         self.index = index
         self.sock = sock
+        self.port = port
         self.addr: tuple | None = None
-        self.controls = np.zeros(5)        # steer, accel, brake, gear, clutch; before any answer: 0
-        self.focus: int | None = 0             # focus angle of the last control message (deg)
+        self.controls = controls           # (5,) view: steer, accel, brake, gear, clutch; 0 before any answer
+        self.focus: int | None = 0         # focus angle of the last control message (deg)
         self.sync = True                   # False once dropped to timeout behaviour
         self.angles = P.DEFAULT_ANGLES_DEG
 
@@ -75,8 +79,10 @@ class _Car:
 class ScrServer:
     """Serve one World to N SCR clients over UDP on host:port+i.
 
-    `make_world(seed)` builds a fresh World (called at start and after every restart, so a
-    restarted race with the same seed is bit-identical).
+    `make_world(seed)` builds a fresh World (called before the clients identify, at start and
+    after every restart, so a restarted race with the same seed is bit-identical). `ports`
+    (optional, one per car) replaces the default port+i, e.g. for a TORCS race file whose
+    scr_server indices have gaps. Sensor noise (`noisy`) draws from default_rng([seed, 1]).
     """
 
     def __init__(self, make_world: Callable[[int], object], n_clients: int, *, host: str = "127.0.0.1",
@@ -85,7 +91,7 @@ class ScrServer:
                  max_ticks: int | None = None, countdown_ticks: int = COUNTDOWN_TICKS,
                  start_timeout_s: float | None = None, client_deadline_s: float = 5.0,
                  log: Callable[[str], None] | None = None, log_csv: str | os.PathLike | None = None,
-                 pid: int | None = None):
+                 pid: int | None = None, ports: list[int] | None = None):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if identified_reply not in ("plain", "pid"):
@@ -95,6 +101,9 @@ class ScrServer:
         self.make_world = make_world
         self.n = int(n_clients)
         self.host, self.port, self.mode = host, int(port), mode
+        self.ports = [self.port + i for i in range(self.n)] if ports is None else [int(p) for p in ports]
+        if len(self.ports) != self.n or len(set(self.ports)) != self.n:
+            raise ValueError(f"ports must be {self.n} distinct numbers, got {ports}")
         self.timeout_s = float(timeout_ms) / 1000.0
         self.noisy = bool(noisy)
         self.reply = P.identified_reply(pid if pid is not None else os.getpid()) \
@@ -111,21 +120,24 @@ class ScrServer:
         self._stop = False
         self.cars: list[_Car] = []
         self.world = None
+        self._race_ticks = 0          # world ticks of the current race
 
     # --- sockets ----------------------------------------------------------------------------
 
     def open(self) -> None:
-        """Bind one UDP socket per car (host:port+i)."""
-        for i in range(self.n):
+        """Bind one UDP socket per car (host:port+i, or host:ports[i])."""
+        self._controls = np.zeros((self.n, 5))
+        for i, port in enumerate(self.ports):
             s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             try:
-                s.bind((self.host, self.port + i))
-            except OSError as exc:
+                s.bind((self.host, port))
+            except (OSError, OverflowError) as exc:
                 s.close()
                 self.close()
-                raise ServerError(f"cannot bind UDP {self.host}:{self.port + i}: {exc.strerror or exc}") from None
+                raise ServerError(f"cannot bind UDP {self.host}:{port}: "
+                                  f"{getattr(exc, 'strerror', None) or exc}") from None
             s.setblocking(False)
-            self.cars.append(_Car(i, s))
+            self.cars.append(_Car(i, s, port, self._controls[i]))
 
     def close(self) -> None:
         for c in self.cars:
@@ -159,17 +171,17 @@ class ScrServer:
         for c in self.cars:
             c.addr = None
         waiting_since = last_note = time.monotonic()
-        self.log(f"waiting for {self.n} client(s) on UDP ports {self.port}..{self.port + self.n - 1}")
+        self.log(f"waiting for {self.n} client(s) on UDP port(s) {_port_list(self.ports)}")
         while any(c.addr is None for c in self.cars):
             if self._stop:
                 return False
             now = time.monotonic()
             if self.start_timeout_s is not None and now - waiting_since > self.start_timeout_s:
-                missing = [str(self.port + c.index) for c in self.cars if c.addr is None]
+                missing = [str(c.port) for c in self.cars if c.addr is None]
                 raise ServerError(f"no client identified on port(s) {', '.join(missing)} within "
                                   f"{self.start_timeout_s:g} s")
             if now - last_note > 5.0:
-                missing = [str(self.port + c.index) for c in self.cars if c.addr is None]
+                missing = [str(c.port) for c in self.cars if c.addr is None]
                 self.log(f"still waiting for clients on port(s) {', '.join(missing)}")
                 last_note = now
             socks = [c.sock for c in self.cars if c.addr is None]
@@ -185,87 +197,107 @@ class ScrServer:
                         continue
                     c.addr = addr
                     c.angles = init.angles_deg
-                    c.controls = np.zeros(5)
+                    c.controls[:] = 0.0
                     c.sync = True
                     c.focus = 0
-                    c.sock.sendto(self.reply, addr)
-                    self.log(f"client {init.client_id!r} identified on port {self.port + c.index} from {addr[0]}:{addr[1]}")
+                    self._send(c, self.reply)
+                    self.log(f"client {init.client_id!r} identified on port {c.port} from {addr[0]}:{addr[1]}")
         return True
 
     # --- the race -----------------------------------------------------------------------
 
     def serve(self) -> ServerStats:
-        """Run races until the end of a race, a stop request or Ctrl-C; returns the counters."""
+        """Run races until the end of a race, a stop request or Ctrl-C; returns the counters.
+
+        On a stop request or Ctrl-C every identified client gets `***shutdown***` and the
+        summary of the race so far is logged; Ctrl-C does not propagate."""
         if not self.cars:
             self.open()
         writer = None
         csv_file = None
-        if self.log_csv is not None:
-            csv_file = open(self.log_csv, "w", newline="")
-            writer = csv.writer(csv_file)
-            writer.writerow(CSV_FIELDS)
+        stopped = False
         try:
+            if self.log_csv is not None:
+                csv_file = open(self.log_csv, "w", newline="")
+                writer = csv.writer(csv_file)
+                writer.writerow(CSV_FIELDS)
             while not self._stop:
+                world = self.make_world(self.seed)   # before the clients, as TORCS loads first
                 if not self.identify_all():
                     break
-                outcome = self._race(writer)
+                outcome = self._race(writer, world)
                 if outcome != "restart":
+                    stopped = outcome == "stopped"
                     break
         except KeyboardInterrupt:
             self.log("interrupted: shutting down")
             for c in self.cars:
                 self._send(c, P.SHUTDOWN_MESSAGE)
+            stopped = True
         finally:
             if csv_file is not None:
                 csv_file.close()
             self.close()
+        if stopped and self.world is not None:
+            self._final_table(self.world, self._race_ticks, "race stopped")
         return self.stats
 
-    def _race(self, writer) -> str:
-        """One race from the grid; returns 'restart', 'end' or 'stopped'."""
-        self.world = world = self.make_world(self.seed)
+    def _race(self, writer, world) -> str:
+        """One race of a fresh World from the grid; returns 'restart', 'end' or 'stopped'."""
+        self.world = world
         self.stats.races += 1
         suite = SensorSuite(world, noisy=self.noisy, rng=np.random.default_rng([self.seed, 1]))
         for c in self.cars:
             suite.set_angles(c.index, c.angles)
-        active = np.ones(self.n, dtype=bool)
-        last_laps = np.zeros(self.n, dtype=np.int64)
+        all_cars = np.arange(self.n)
+        focus_asked = [0] * self.n          # what the suite holds: a new suite asks focus 0
+        # per-car bookkeeping as Python lists: cheaper than numpy for the usual few cars
+        laps = world.column("laps").tolist()
+        cars = list(self.cars)              # the cars still in the race
         countdown = self.countdown_ticks
-        tick = 0
+        tick = self._race_ticks = 0
         while True:
             if self._stop:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
                 return "stopped"
             frame = suite.frame()
+            flat = frame.flat                  # (N, 79) wire order, see sensors.SENSOR_OFFSETS
             if countdown > 0:
-                frame.curLapTime[:] = -TICK_S * countdown
-                frame.gear[:] = 0
-                frame.focus[:] = -1.0
-            finished = self._race_over(world, tick, active)
-            for c in self.cars:
-                if active[c.index]:
-                    self._send(c, self._encode(frame, c.index))
+                flat[:, _CUR_LAP] = -TICK_S * countdown
+                flat[:, _GEAR] = 0.0
+                flat[:, _FOCUS:_FOCUS + 5] = -1.0
+            finished = self._race_over(tick, laps, cars)
+            late = {} if finished or self.mode == "timeout" else self._take_late(cars)
+            rows = flat.astype(np.float32)     # the codec's fast path; SCR sends C floats anyway
+            for c in cars:
+                self._send(c, self._encode(rows[c.index]))
             if finished:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
-                self._final_table(world)
+                self._final_table(world, tick, "race over")
                 return "end"
-            restart_by = self._collect(active)
-            controls = np.array([c.controls for c in self.cars])
-            focus = [c.focus for c in self.cars]
-            suite.request_focus(np.arange(self.n), np.array([f if f is not None else FOCUS_NONE
-                                                             for f in focus], dtype=np.float64))
+            restart_by = self._collect(cars, late)
+            focus = [FOCUS_NONE if c.focus is None else c.focus for c in self.cars]
+            if focus != focus_asked:
+                suite.request_focus(all_cars, np.array(focus, dtype=np.float64))
+                focus_asked = focus
             if writer is not None:
-                self._write_csv(writer, tick, world, frame, controls)
+                self._write_csv(writer, tick if countdown == 0 else -countdown, world, frame, self._controls)
             if countdown > 0:
                 countdown -= 1
             else:
-                world.step(controls)
+                world.step(self._controls)
                 self.stats.ticks += 1
                 tick += 1
-                self._log_laps(world, last_laps)
-                active &= world.column("damage") <= MAX_DAMAGE
+                self._race_ticks = tick
+                now_laps = world.column("laps").tolist()
+                if now_laps != laps:
+                    self._log_laps(world, now_laps, laps)
+                    laps = now_laps
+                damage = world.column("damage").tolist()
+                if max(damage) > MAX_DAMAGE:
+                    cars = [c for c in cars if damage[c.index] <= MAX_DAMAGE]
             if restart_by is not None:
                 self.stats.restarts += 1
                 self.log(f"restart requested by the client of car {restart_by}")
@@ -273,30 +305,56 @@ class ScrServer:
                     self._send(c, P.RESTART_MESSAGE if c.index == restart_by else P.SHUTDOWN_MESSAGE)
                 return "restart"
 
-    def _encode(self, frame, k: int) -> bytes:
+    def _encode(self, row: np.ndarray) -> bytes:
+        """One car's state message from its (79,) wire-order sensor row (float32)."""
         try:
-            return P.encode_sensors(frame.row(k))
+            return P.encode_sensors_flat(row)
         except P.ProtocolError:
-            # only pathological values exceed 999 bytes; clip the noisy arrays and retry
-            row = frame.row(k)
+            # only pathological values exceed 999 bytes; round the noisy arrays and retry
+            row = row.copy()
             for name in ("track", "opponents", "focus"):
-                row[name] = [float(np.float32(round(v, 2))) for v in row[name]]
-            return P.encode_sensors(row)
+                o, w = SENSOR_OFFSETS[name]
+                row[o:o + w] = np.round(row[o:o + w], 2)
+            return P.encode_sensors_flat(row)
 
-    def _race_over(self, world, tick: int, active: np.ndarray) -> bool:
+    def _race_over(self, tick: int, laps: list, cars: list[_Car]) -> bool:
+        """Max ticks reached, every car out, or every car still in the race done its laps."""
         if self.max_ticks is not None and tick >= self.max_ticks:
             return True
-        if not active.any():
+        if not cars:
             return True
         if self.laps is not None:
-            done = world.column("laps")[active] > self.laps
-            return bool(done.all())
+            return all(laps[c.index] > self.laps for c in cars)
         return False
 
-    def _collect(self, active: np.ndarray) -> int | None:
+    def _take_late(self, cars: list[_Car]) -> dict[int, bytes]:
+        """Sync and realtime modes, just before the states go out: empty every car's queue.
+
+        What a client we wait for (sync) sent since its last answer is stale: dropped and
+        counted, unless it asks for a restart. For a client on timeout behaviour (sync, after
+        its deadline) and in realtime mode the newest datagram is a late answer: it is used if
+        no fresh answer comes this tick (and in sync mode the client is waited for again)."""
+        ready, _, _ = select.select([c.sock for c in cars], [], [], 0)
+        late: dict[int, bytes] = {}
+        for c in cars:
+            if c.sock not in ready:
+                continue
+            keep_newest = self.mode == "realtime" or not c.sync
+            while (got := self._recv(c)) is not None:
+                data, addr = got
+                if addr != c.addr:
+                    self.stats.foreign_datagrams += 1
+                elif keep_newest or P.decode_controls(data).meta == 1:
+                    if c.index in late:
+                        self.stats.drained_datagrams += 1   # superseded by a newer one
+                    late[c.index] = data
+                else:
+                    self.stats.drained_datagrams += 1
+        return late
+
+    def _collect(self, cars: list[_Car], late: dict[int, bytes]) -> int | None:
         """Read this tick's controls per the clock mode; returns the car asking for restart."""
-        cars = [c for c in self.cars if active[c.index]]
-        got: dict[int, bytes] = {}
+        got: dict[int, bytes] = dict(late)   # fresh answers replace late ones
         start = time.monotonic()
         if self.mode == "timeout":
             for c in cars:   # TORCS polls in turn: exactly one datagram, no draining
@@ -305,29 +363,30 @@ class ScrServer:
                     got[c.index] = data
         else:
             tick_end = start + TICK_S if self.mode == "realtime" else None
-
-            def deadline(c: _Car) -> float:
-                if tick_end is not None:
-                    return tick_end
-                return start + (self.client_deadline_s if c.sync else self.timeout_s)
-
-            pending = {c.index: c for c in cars}
+            # a late answer that asks for a restart is final: nothing more to wait for
+            final = {i for i, data in late.items() if P.decode_controls(data).meta == 1} if late else ()
+            pending = {c.sock: c for c in cars if c.index not in final}
+            deadline = {c.index: tick_end if tick_end is not None else
+                        start + (self.client_deadline_s if c.sync else self.timeout_s) for c in pending.values()}
             while pending:
-                wait = max(0.0, min(deadline(c) for c in pending.values()) - time.monotonic())
-                ready, _, _ = select.select([c.sock for c in pending.values()], [], [], wait)
-                for c in list(pending.values()):
-                    if c.sock in ready and (data := self._read_from_client(c)) is not None:
+                wait = min(deadline[c.index] for c in pending.values()) - time.monotonic()
+                ready, _, _ = select.select(list(pending), [], [], max(0.0, wait))
+                for sock in ready:
+                    c = pending[sock]
+                    if (data := self._read_from_client(c)) is not None:
                         got[c.index] = data
-                        del pending[c.index]
+                        del pending[sock]
+                if not pending or ready and wait > 0:
+                    continue
                 now = time.monotonic()
-                for c in list(pending.values()):
-                    if now >= deadline(c):
+                for sock, c in list(pending.items()):
+                    if now >= deadline[c.index]:
                         if c.sync and tick_end is None:
                             c.sync = False
                             self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
                                      f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
                                      f"per tick until it answers again")
-                        del pending[c.index]
+                        del pending[sock]
             if tick_end is not None and (rest := tick_end - time.monotonic()) > 0:
                 time.sleep(rest)
         restart_by = None
@@ -336,32 +395,28 @@ class ScrServer:
             if data is None:
                 self.stats.timeouts += 1
                 continue
-            c.sync = True  # it answered: wait for it again
+            if not c.sync:   # it answered (late or fresh): wait for it again
+                c.sync = True
+                self.log(f"client of car {c.index} answers again: waiting for it every tick")
             ctl = P.decode_controls(data)
             if not ctl.well_formed:
                 self.stats.bad_datagrams += 1
-            c.controls = np.array([ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch], dtype=np.float64)
+            c.controls[:] = (ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch)
             c.focus = ctl.focus
             if ctl.meta == 1 and restart_by is None:
                 restart_by = c.index
         return restart_by
 
     def _read_from_client(self, c: _Car) -> bytes | None:
-        """The next datagram from c's own client; foreign ones are counted and dropped. In sync
-        mode extra queued replies (e.g. gym_torcs' double reply) are drained and counted."""
-        first = None
+        """The next datagram from c's own client; foreign ones are counted and dropped. Only
+        one is read: in timeout mode the rest waits for the next ticks (TORCS), in the other
+        modes `_take_late` empties the queue before the next state is sent."""
         while (got := self._recv(c)) is not None:
             data, addr = got
-            if addr != c.addr:
-                self.stats.foreign_datagrams += 1
-                continue
-            if first is None:
-                first = data
-                if self.mode == "timeout":
-                    break
-            else:
-                self.stats.drained_datagrams += 1
-        return first
+            if addr == c.addr:
+                return data
+            self.stats.foreign_datagrams += 1
+        return None
 
     def _wait_one(self, c: _Car, deadline: float) -> bytes | None:
         while True:
@@ -376,18 +431,17 @@ class ScrServer:
 
     # --- reporting ----------------------------------------------------------------------
 
-    def _log_laps(self, world, last_laps: np.ndarray) -> None:
-        laps = world.column("laps").astype(np.int64)
-        for i in np.nonzero(laps > last_laps)[0]:
+    def _log_laps(self, world, laps: list, before: list) -> None:
+        """One line per completed lap (the first line crossing from the grid starts lap 1)."""
+        for i, (now, was) in enumerate(zip(laps, before)):
             lap_time = float(world.column("last_lap_time")[i])
-            if laps[i] >= 2 and lap_time > 0:
-                self.stats.laps.append((self.stats.races, int(i), int(laps[i]) - 1, lap_time))
-                self.log(f"car {i}: lap {int(laps[i]) - 1} in {lap_time:.3f} s, "
+            if now > was and now >= 2 and lap_time > 0:
+                self.stats.laps.append((self.stats.races, i, int(now) - 1, lap_time))
+                self.log(f"car {i}: lap {int(now) - 1} in {lap_time:.3f} s, "
                          f"damage {int(world.column('damage')[i])}")
-        last_laps[:] = laps
 
-    def _final_table(self, world) -> None:
-        self.log(f"race over after {self.stats.ticks} ticks")
+    def _final_table(self, world, ticks: int, how: str) -> None:
+        self.log(f"{how} after {ticks} ticks")
         self.log(f"{'car':>3} {'laps':>4} {'best lap (s)':>12} {'last lap (s)':>12} {'damage':>6} {'pos':>3}")
         for i in range(self.n):
             best = world.column("best_lap_time")[i]
@@ -401,6 +455,8 @@ class ScrServer:
                  f"{st.timeouts} reused controls")
 
     def _write_csv(self, writer, tick: int, world, frame, controls: np.ndarray) -> None:
+        """One row per car: the state sent at this tick and the controls applied for it
+        (countdown ticks are numbered -countdown .. -1, the race from 0)."""
         col = world.column
         t = world.time
         for i in range(self.n):
@@ -409,4 +465,17 @@ class ScrServer:
                              f"{frame.trackPos[i]:.5f}", f"{frame.angle[i]:.5f}", f"{frame.speedX[i]:.3f}",
                              f"{frame.speedY[i]:.3f}", f"{frame.rpm[i]:.1f}", int(frame.gear[i]),
                              int(col("laps")[i]), f"{frame.curLapTime[i]:.3f}", f"{frame.lastLapTime[i]:.3f}",
-                             int(frame.damage[i]), *(f"{v:.5f}" for v in controls[i])])
+                             int(frame.damage[i]), f"{controls[i, 0]:.5f}", f"{controls[i, 1]:.5f}",
+                             f"{controls[i, 2]:.5f}", int(controls[i, 3]), f"{controls[i, 4]:.5f}"])
+
+
+def _port_list(ports: list[int]) -> str:
+    """'3001..3003' for consecutive ports, else '3001, 3003'."""
+    if ports == list(range(ports[0], ports[0] + len(ports))):
+        return f"{ports[0]}..{ports[-1]}" if len(ports) > 1 else str(ports[0])
+    return ", ".join(map(str, ports))
+
+
+_CUR_LAP = SENSOR_OFFSETS["curLapTime"][0]
+_GEAR = SENSOR_OFFSETS["gear"][0]
+_FOCUS = SENSOR_OFFSETS["focus"][0]

@@ -162,9 +162,12 @@ QUICKRACE_GRID = {"rows": 2.0, "distance to start": 25.0, "distance between colu
 """TORCS's quickrace `Starting Grid` (config/raceman/quickrace.xml), overridden by the track's."""
 
 
-def grid_positions(track: Track, n_cars: int) -> tuple[np.ndarray, np.ndarray]:
-    """(s, n) of n_cars on the starting grid (track spec 7), m."""
+def grid_positions(track: Track, n_cars: int, race_grid: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(s, n) of n_cars on the starting grid (track spec 7), m: the race's grid values (default
+    quickrace's; `race_grid` overrides them, e.g. from a raceman file), then the track's own."""
     g = dict(QUICKRACE_GRID)
+    if race_grid:
+        g.update({k: v for k, v in race_grid.items() if k in QUICKRACE_GRID})
     g.update({k: v for k, v in track.grid.items() if k in QUICKRACE_GRID})
     rows = max(int(g["rows"]), 1)
     i = np.arange(n_cars)

@@ -1,0 +1,145 @@
+"""`madsim serve` in sync mode with one minimal UDP client: ticks per second of wall time.
+
+Run: python benchmarks/bench_server.py [--ticks 20000] [--track madsim-oval] [--case rest]
+                                       [--profile FILE]
+
+The server runs as a subprocess (`python -m madsim.cli serve --countdown 0 --max-ticks N`); the
+client is a plain socket in this process that sends the init once, then answers every state
+message at once with one fixed C++-style control string, without parsing anything. The clock
+runs over the last `--ticks` ticks, after WARMUP ticks (1,000) that absorb start-up costs (the
+first World.step compiles the contact stepper, ~1 s), up to `***shutdown***`. Real TORCS
+reaches about 10,400 ticks/s here with a minimal client (issue 4). With --profile FILE the
+server runs under cProfile and its 25 most expensive functions (own time) are printed.
+
+Cases (`--case`, default all three):
+- `echo`: no madsim at all, a do-nothing Python UDP server: the transport floor of a Python
+  server and client on this machine at this moment (run it beside the others on a busy box);
+- `rest`: the car stays on the grid (physics, sensors and codec run every tick, the contact
+  solver idles);
+- `wall`: straight on at half throttle: after the first bend the car scrapes the barrier and
+  contact is resolved on every sub-step (the worst case).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pstats
+import socket
+import subprocess
+import sys
+import time
+
+INIT = b"SCR(init -45 -19 -12 -7 -4 -2.5 -1.7 -1 -.5 0 .5 1 1.7 2.5 4 7 12 19 45)"
+CONTROLS = {
+    # the car stays on the grid: physics, sensors and codec run, the contact solver idles
+    "rest": b"(accel 0)(brake 1)(gear 0)(steer 0)(clutch 0)(focus 0)(meta 0)\0",
+    # half throttle, straight on: the car leaves the oval at the first bend and then scrapes
+    # the wall, so the contact solver is consulted on every sub-step (the worst case)
+    "wall": b"(accel 0.5)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0",
+    # no madsim at all: the do-nothing Python server below, answered with the "rest" string
+    "echo": b"",
+}
+
+
+# The transport floor: a Python scr_server that does no work at all (identifies, then sends one
+# fixed 600-byte state per answer, sync style).
+ECHO_SERVER = r"""
+import select, socket, sys
+port, ticks = int(sys.argv[1]), int(sys.argv[2])
+state = b"(angle 0)" + b"(track" + b" 123.456" * 70 + b")\0"
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+s.bind(("127.0.0.1", port))
+data, addr = s.recvfrom(65536)
+s.sendto(b"***identified***\0", addr)
+for _ in range(ticks + 1):
+    s.sendto(state, addr)
+    select.select([s], [], [], 10.0)
+    s.recvfrom(65536)
+s.sendto(b"***shutdown***\0", addr)
+"""
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+WARMUP = 1_000
+
+
+def run(ticks: int, track: str, control: bytes, profile: str | None) -> float:
+    """Ticks per second of wall time over `ticks` ticks after WARMUP (states counted here)."""
+    port = free_udp_port()
+    cmd = [sys.executable]
+    if control == b"":
+        cmd += ["-c", ECHO_SERVER, str(port), str(ticks + WARMUP)]
+        control = CONTROLS["rest"]
+    else:
+        if profile:
+            cmd += ["-m", "cProfile", "-o", profile]
+        cmd += ["-m", "madsim.cli", "serve", "--track", track, "--port", str(port), "--countdown", "0",
+                "--max-ticks", str(ticks + WARMUP), "--start-timeout", "60"]
+    server = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.settimeout(1.0)
+        for _ in range(60):  # the port exists once the server has loaded track and car
+            sock.sendto(INIT, ("127.0.0.1", port))
+            try:
+                if sock.recv(64).startswith(b"***identified***"):
+                    break
+            except (socket.timeout, ConnectionRefusedError):
+                continue
+        else:
+            raise SystemExit(f"server did not identify: {server.stderr.read().decode()[-500:]}")
+        sock.settimeout(60.0)
+        addr = ("127.0.0.1", port)
+        recv, send = sock.recv, sock.sendto
+        data = recv(2048)
+        for _ in range(WARMUP):
+            send(control, addr)
+            data = recv(2048)
+        start = time.perf_counter()
+        states = 1
+        while data[:3] != b"***":
+            send(control, addr)
+            data = recv(2048)
+            states += 1
+        elapsed = time.perf_counter() - start
+        server.wait(timeout=30)
+        if server.returncode != 0:
+            raise SystemExit(f"server exited with {server.returncode}: {server.stderr.read().decode()[-500:]}")
+        return (states - 1) / elapsed   # states - 1 answered intervals = world ticks timed
+    finally:
+        sock.close()
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ticks", type=int, default=20_000)
+    ap.add_argument("--track", default="madsim-oval")
+    ap.add_argument("--case", choices=sorted(CONTROLS), action="append",
+                    help="control string(s) to time (default: all)")
+    ap.add_argument("--profile", default=None, help="write the server's cProfile output here "
+                    "(one case only)")
+    args = ap.parse_args()
+    cases = args.case or ["echo", "rest", "wall"]
+    if args.profile and len(cases) != 1:
+        ap.error("--profile needs exactly one --case")
+    for case in cases:
+        rate = run(args.ticks, args.track, CONTROLS[case], args.profile)
+        what = ("do-nothing Python UDP server (transport floor)" if case == "echo" else
+                f"madsim serve, sync mode, {args.track}, car {case}")
+        print(f"{what}, one minimal client, {args.ticks} ticks: {rate:,.0f} ticks/s of wall time "
+              f"({1e6 / rate:.1f} us per tick; real TORCS ~10,400)", flush=True)
+    if args.profile and os.path.exists(args.profile):
+        pstats.Stats(args.profile).sort_stats("tottime").print_stats(25)
+
+
+if __name__ == "__main__":
+    main()
