@@ -114,6 +114,21 @@ DONES: dict[str, type[DoneComponent]] = {
 }
 
 
+def register_done(name: str):
+    """Class decorator adding a DoneComponent subclass to `DONES` under `name`, so configs can use
+    it. Registering the same class twice is a no-op; another class under a taken name is an
+    error. Import the defining module wherever envs are made (spawned workers too)."""
+    def add(cls):
+        if not (isinstance(cls, type) and issubclass(cls, DoneComponent)):
+            raise TypeError(f"register_done: {cls!r} is not a DoneComponent subclass")
+        taken = DONES.get(name)
+        if taken is not None and taken is not cls:
+            raise ValueError(f"done name {name!r} is already registered by {taken.__qualname__}")
+        DONES[name] = cls
+        return cls
+    return add
+
+
 def make_done(name: str, **context) -> DoneComponent:
     """Build one component, passing it those of `context` (max_steps, laps, track_limits,
     target_speed) its constructor takes."""

@@ -211,6 +211,21 @@ REWARDS: dict[str, type[RewardComponent]] = {
     "RankOne": RankOne, "Task": Task,
 }
 
+
+def register_reward(name: str):
+    """Class decorator adding a RewardComponent subclass to `REWARDS` under `name`, so configs can use
+    it. Registering the same class twice is a no-op; another class under a taken name is an
+    error. Import the defining module wherever envs are made (spawned workers too)."""
+    def add(cls):
+        if not (isinstance(cls, type) and issubclass(cls, RewardComponent)):
+            raise TypeError(f"register_reward: {cls!r} is not a RewardComponent subclass")
+        taken = REWARDS.get(name)
+        if taken is not None and taken is not cls:
+            raise ValueError(f"reward name {name!r} is already registered by {taken.__qualname__}")
+        REWARDS[name] = cls
+        return cls
+    return add
+
 # MADRaS class names (master and devel) -> madsim names
 REWARD_ALIASES = {
     "ProgressReward": "Progress", "ProgressReward2": "Progress2", "ProgressReward3": "Progress3",
