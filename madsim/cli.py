@@ -317,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("input")
     v.add_argument("-o", "--output", required=True)
     v.set_defaults(func=cmd_convert_car)
+
+    from madsim.render.commands import add_render_commands
+    add_render_commands(sub)
     return p
 
 

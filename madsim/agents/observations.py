@@ -75,7 +75,7 @@ _MODES = {
     "SingleAgentInTrafficObs": tuple((f, b, 1.0) for f, b in _SIMPLE_LAP)
     + (("opponents", None, 1.0),),
 }
-OBSERVATION_MODES = tuple(_MODES) + ("Fields",)
+OBSERVATION_MODES = tuple(_MODES) + ("Fields", "Image")
 
 
 def mode_fields(mode: str, fields: Sequence[str] = ()) -> tuple[str, ...]:
@@ -98,6 +98,9 @@ class ObservationBuilder:
     def __init__(self, mode: str = "SingleAgentSimpleLapObs", fields: Sequence[str] = (), *,
                  normalise: bool = False, obs_min: Mapping[str, float] | None = None,
                  obs_max: Mapping[str, float] | None = None):
+        if mode == "Image":
+            raise ValueError("mode 'Image' is built by ObservationBuilder.from_config "
+                             "(madsim.render.image_obs.ImageObservationBuilder)")
         if mode not in OBSERVATION_MODES:
             raise ValueError(f"unknown observation mode {mode!r}; one of {OBSERVATION_MODES}")
         if mode == "Fields":
@@ -151,6 +154,10 @@ class ObservationBuilder:
     @classmethod
     def from_config(cls, obs) -> ObservationBuilder:
         """From a config's ObservationConfig."""
+        if obs.mode == "Image":
+            from madsim.render.image_obs import ImageObservationBuilder
+
+            return ImageObservationBuilder(obs.image_size, obs.image_metres)
         return cls(obs.mode, obs.fields, normalise=obs.normalised, obs_min=obs.obs_min,
                    obs_max=obs.obs_max)
 

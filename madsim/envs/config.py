@@ -317,8 +317,13 @@ class ObservationConfig:
     normalised: bool = False
     obs_min: Mapping[str, float] = field(default_factory=dict)
     obs_max: Mapping[str, float] = field(default_factory=dict)
+    image_size: int = 64           # mode Image: side of the square RGB image, pixels
+    image_metres: float = 48.0     # mode Image: width of ground the image covers, m
 
     def __post_init__(self):
+        if not 8 <= self.image_size <= 512:
+            _fail("image_size", "must be 8..512 pixels", self.image_size)
+        _positive(self, "image_metres")
         _set(self, "obs_min", _frozen_map(self.obs_min))
         _set(self, "obs_max", _frozen_map(self.obs_max))
         _choice(self, "mode", OBSERVATION_MODES)
@@ -454,6 +459,8 @@ class AgentConfig:
                 raise _unknown("done", name, DONES, f"dones[{i}]")
         if len(set(self.dones)) != len(self.dones):
             _fail("dones", "lists a done twice", list(self.dones))
+        if self.communication is not None and self.observation.mode == "Image":
+            _fail("communication", "an Image observation cannot carry messages", "Image")
 
 
 # Behaviour parameters of the built-in traffic (SI: m/s, s, m; lanes in trackPos units).
@@ -660,6 +667,8 @@ def observation_size(cfg: ScenarioConfig, agent_name: str) -> int:
     agents = {a.name: a for a in cfg.agents}
     agent = agents[agent_name]
     o = agent.observation
+    if o.mode == "Image":
+        return o.image_size * o.image_size * 3
     size = ObservationBuilder(o.mode, o.fields).size
     link = agent.communication
     if link is not None:

@@ -311,6 +311,9 @@ class MadrasCore:
         self.plan = plan = draw_plan(cfg, episode, seed, scenario_rng)
         self.track = track = self.assets.track(plan.track)
         cars = [self.assets.car(c) for c in plan.cars]
+        for builder in self.builders.values():
+            if hasattr(builder, "reset"):          # image observations: this episode's track
+                builder.reset(track, cars)
         where = placements(cfg, plan, track, scenario_rng)
         frame = self.backend.start((plan.track, plan.cars), track, cars, where,
                                    noisy=cfg.server.observation_noise,

@@ -74,13 +74,12 @@ class MadrasEnv(gymnasium.Env):
     - v0: first version (madsim 0.1).
     """
 
-    metadata: ClassVar[dict] = {"render_modes": [], "render_fps": 50}
+    metadata: ClassVar[dict] = {"render_modes": ["human", "rgb_array"], "render_fps": 50}
 
     def __init__(self, config=None, *, backend=None, traffic_factory=None,
-                 render_mode: str | None = None):
-        if render_mode is not None:
-            raise ValueError(f"render_mode must be None (got {render_mode!r}); "
-                             "draw with madsim.render")
+                 render_mode: str | None = None, render_options: dict | None = None):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None, 'human' or 'rgb_array', got {render_mode!r}")
         self.core = MadrasCore(config, backend=backend, traffic_factory=traffic_factory)
         if len(self.core.names) != 1:
             raise ValueError(f"MadrasEnv drives one learning car, the config has "
@@ -90,7 +89,13 @@ class MadrasEnv(gymnasium.Env):
         self.config = self.core.config
         self.action_space = self.core.action_spaces[self.agent]
         self.observation_space = self.core.observation_spaces[self.agent]
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._view = None
+        if render_mode is not None:
+            from madsim.render.envview import EnvView
+
+            self._view = EnvView(render_mode, **(render_options or {}))
+            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core)}
 
     @property
     def curriculum_progress(self) -> int:
@@ -104,12 +109,22 @@ class MadrasEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         obs, infos = self.core.new_episode(seed, options, self.np_random)
+        if self.render_mode == "human":
+            self._view.render(self.core)
         return obs[self.agent], infos[self.agent]
 
     def step(self, action):
         obs, rewards, terminated, truncated, infos = self.core.step({self.agent: action})
+        if self.render_mode == "human":
+            self._view.render(self.core)
         a = self.agent
         return obs[a], rewards[a], terminated[a], truncated[a], infos[a]
 
+    def render(self):
+        """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""
+        return None if self._view is None else self._view.render(self.core)
+
     def close(self) -> None:
+        if self._view is not None:
+            self._view.close()
         self.core.close()

@@ -55,21 +55,26 @@ class MadrasParallelEnv(ParallelEnv):
     - v0: first version (madsim 0.1).
     """
 
-    metadata: ClassVar[dict] = {"name": "madsim_parallel_v0", "render_modes": [], "render_fps": 50,
-                "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "madsim_parallel_v0", "render_modes": ["human", "rgb_array"],
+                                "render_fps": 50, "is_parallelizable": True}
 
     def __init__(self, config=None, *, backend=None, traffic_factory=None,
-                 render_mode: str | None = None):
-        if render_mode is not None:
-            raise ValueError(f"render_mode must be None (got {render_mode!r}); "
-                             "draw with madsim.render")
+                 render_mode: str | None = None, render_options: dict | None = None):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None, 'human' or 'rgb_array', got {render_mode!r}")
         self.core = MadrasCore(config, backend=backend, traffic_factory=traffic_factory)
         self.config = self.core.config
         self.possible_agents = list(self.core.names)
         self.agents: list[str] = []
         self.observation_spaces = dict(self.core.observation_spaces)
         self.action_spaces = dict(self.core.action_spaces)
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._view = None
+        if render_mode is not None:
+            from madsim.render.envview import EnvView
+
+            self._view = EnvView(render_mode, **(render_options or {}))
+            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core)}
         self._np_random = None
 
     def observation_space(self, agent: str):
@@ -92,6 +97,8 @@ class MadrasParallelEnv(ParallelEnv):
             self._np_random, _ = seeding.np_random(seed)
         obs, infos = self.core.new_episode(seed, options, self._np_random)
         self.agents = list(self.core.live)
+        if self.render_mode == "human":
+            self._view.render(self.core)
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
@@ -99,10 +106,15 @@ class MadrasParallelEnv(ParallelEnv):
                    if name in self.core.live or name not in self.possible_agents}
         result = self.core.step(actions)
         self.agents = list(self.core.live)
+        if self.render_mode == "human":
+            self._view.render(self.core)
         return result
 
-    def render(self) -> None:
-        return None
+    def render(self):
+        """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""
+        return None if self._view is None else self._view.render(self.core)
 
     def close(self) -> None:
+        if self._view is not None:
+            self._view.close()
         self.core.close()

@@ -89,7 +89,7 @@ def test_bad_constructor_arguments_are_refused():
     with pytest.raises(ValueError, match="MadrasParallelEnv"):
         MadrasEnv(CONFIGS / "bottleneck_two_learners.yml", traffic_factory=Cruise)
     with pytest.raises(ValueError, match="render_mode"):
-        MadrasEnv(render_mode="human")
+        MadrasEnv(render_mode="pictures")
     with pytest.raises(ConfigError, match="server.trakcs"):
         MadrasEnv({"server": {"trakcs": ["x"]}})
 
