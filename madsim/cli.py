@@ -151,6 +151,17 @@ def cmd_cars_info(args) -> int:
     return 0
 
 
+# --- run ---------------------------------------------------------------------------------
+
+
+def cmd_run(args) -> int:
+    from madsim.run import run
+
+    run(args.config, episodes=args.episodes, driver=args.driver, seed=args.seed, video=args.video,
+        plot=args.plot, render=args.render, progress=not args.quiet)
+    return 0
+
+
 # --- config -------------------------------------------------------------------------------
 
 
@@ -236,6 +247,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"madsim {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
+    r = sub.add_parser("run", help="drive a scenario (default: one lap of madsim-road with traffic)")
+    r.add_argument("config", nargs="?", default=None, help="scenario YAML (default: the bundled run scenario)")
+    r.add_argument("--episodes", type=int, default=1)
+    r.add_argument("--driver", default="pid", help="pid (built-in), random, or the path of a saved policy")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--video", default=None, help="write the episode as out.mp4 or out.gif")
+    r.add_argument("--plot", default=None, help="write trajectories and speed/trackPos plots (PNG)")
+    r.add_argument("--render", action="store_true", help="open a window")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.set_defaults(func=cmd_run)
+
     tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
     tsub = tracks.add_subparsers(dest="tracks_command", required=True)
     t = tsub.add_parser("list", help="bundled and installed TORCS tracks")
@@ -306,6 +328,12 @@ def build_parser() -> argparse.ArgumentParser:
     dv.add_argument("--id", default="SCR")
     dv.add_argument("--max-steps", type=int, default=None)
     dv.set_defaults(func=cmd_drive)
+
+    from madsim.agents.traffic_client import add_traffic_parser
+    add_traffic_parser(sub)
+
+    from madsim.train.commands import add_parsers as add_train_parsers
+    add_train_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
 
     conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
     vsub = conv.add_subparsers(dest="convert_command", required=True)

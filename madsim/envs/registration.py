@@ -13,6 +13,7 @@ default `config` argument (`gymnasium.make(id, config=...)` replaces it):
 | madsim/TrafficOvertaking-v0        | traffic_overtaking.yml        | yes       | yes        |
 | madsim/MixedTraffic-v0             | mixed_traffic.yml             | yes       | yes        |
 | madsim/BottleneckTwoLearners-v0    | bottleneck_two_learners.yml   | no (2 cars)| yes       |
+| madsim/RunDefault-v0               | run_default.yml (`madsim run`)| yes       | yes        |
 
 PettingZoo ids (`pettingzoo.make("parallel", id)`) are registered only when the installed
 PettingZoo has a registry (`pettingzoo.register`, PettingZoo >= 1.27); otherwise they are
@@ -36,6 +37,7 @@ CONFIGS: dict[str, tuple[str | None, bool]] = {
     "madsim/TrafficOvertaking-v0": ("traffic_overtaking.yml", True),
     "madsim/MixedTraffic-v0": ("mixed_traffic.yml", True),
     "madsim/BottleneckTwoLearners-v0": ("bottleneck_two_learners.yml", False),
+    "madsim/RunDefault-v0": ("run_default.yml", True),
 }
 ENV_IDS = tuple(i for i, (_, single) in CONFIGS.items() if single)
 PARALLEL_ENV_IDS = tuple(CONFIGS)

@@ -50,6 +50,18 @@ def cmd_render(args) -> int:
 
 
 def cmd_plot(args) -> int:
+    """Trace CSVs -> trajectories and speed/trackPos plots; a `madsim train` run folder ->
+    its learning curves (one command for both, as the CLI has one `plot`)."""
+    from pathlib import Path
+
+    if len(args.traces) == 1 and Path(args.traces[0]).is_dir():
+        from madsim.train.plots import plot_learning_curves
+
+        out = plot_learning_curves(args.traces[0], args.output)
+        print(f"wrote {out}")
+        return 0
+    if args.output is None:
+        raise ValueError("plotting traces needs -o OUT.png")
     from madsim.render.plots import plot_traces
 
     rows = None
@@ -80,9 +92,11 @@ def add_render_commands(sub) -> None:
     r.add_argument("--fps", type=float, default=None, help="playback rate (default real time)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_render)
-    p = sub.add_parser("plot", help="plot traces: trajectory by speed on the map, speed and trackPos")
-    p.add_argument("traces", nargs="+", help="one or more trace CSVs, overlaid")
-    p.add_argument("-o", "--output", required=True, help="image file (PNG, SVG, PDF)")
+    p = sub.add_parser("plot", help="plot traces (trajectory by speed, speed and trackPos) or the "
+                                    "learning curves of a `madsim train` run folder")
+    p.add_argument("traces", nargs="+", help="one or more trace CSVs (overlaid), or one run folder")
+    p.add_argument("-o", "--output", default=None,
+                   help="image file (PNG, SVG, PDF); for a run folder default RUN_DIR/learning_curves.png")
     p.add_argument("--track", default="madsim-road", help="the track the traces were recorded on")
     p.add_argument("--cars", default=None, help="car rows to plot, comma-separated (default all)")
     p.add_argument("--labels", default=None, help="one name per trace, comma-separated")
