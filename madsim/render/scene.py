@@ -39,7 +39,9 @@ class CarPoses(NamedTuple):
     def from_arrays(cls, x, y, yaw, length=4.78, width=1.84) -> CarPoses:
         """From array-likes; length and width broadcast (default madsim-sedan)."""
         x = np.atleast_1d(np.asarray(x, dtype=np.float64))
-        b = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=np.float64), x.shape))
+
+        def b(v):
+            return np.array(np.broadcast_to(np.asarray(v, dtype=np.float64), x.shape))
         return cls(x, b(y), b(yaw), b(length), b(width))
 
     def __len__(self) -> int:   # number of cars, not of fields
