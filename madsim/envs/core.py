@@ -361,8 +361,10 @@ class MadrasCore:
             self.frame = frame
             self.rows = [SensorRow(v) for v in frame.flat.tolist()]
 
-    def _traffic_controls(self) -> None:
-        u, rows = self.controls, self.rows
+    def _traffic_controls(self, rows=None) -> None:
+        """Traffic controls for the coming tick from the latest sensor rows (default self.rows)."""
+        u = self.controls
+        rows = self.rows if rows is None else rows
         for j, b in enumerate(self.behaviours):
             steer, accel, brake, gear = b.act(rows[j])
             u[j, 0], u[j, 1], u[j, 2], u[j, 3] = steer, accel, brake, gear
@@ -404,7 +406,7 @@ class MadrasCore:
             for name, drv, k, st in running:
                 drv.fill(u[k], rows[k])
             if self.behaviours:
-                self._traffic_controls()
+                self._traffic_controls(rows)     # this tick's rows, not the step's first
             new = backend.step(u)
             self.tick += 1
             if new is None:                          # the server ended the race

@@ -42,6 +42,7 @@ CONFIGS: dict[str, tuple[str | None, bool]] = {
 ENV_IDS = tuple(i for i, (_, single) in CONFIGS.items() if single)
 PARALLEL_ENV_IDS = tuple(CONFIGS)
 _ENTRY = "madsim.envs.madras_env:MadrasEnv"
+_VECTOR_ENTRY = "madsim.envs.vector:MadrasVectorEnv"   # gymnasium.make_vec(id, vectorization_mode="vector_entry_point")
 _PARALLEL_ENTRY = "madsim.envs.parallel_env:MadrasParallelEnv"
 
 
@@ -56,7 +57,7 @@ def register_envs() -> None:
     for env_id in ENV_IDS:
         if env_id not in gymnasium.registry:
             gymnasium.register(id=env_id, entry_point=_ENTRY, kwargs=_kwargs(CONFIGS[env_id][0]),
-                               nondeterministic=False)
+                               nondeterministic=False, vector_entry_point=_VECTOR_ENTRY)
     try:
         import pettingzoo
     except ImportError:

@@ -1,0 +1,887 @@
+"""`make_vec`: N `MadrasEnv` episodes as one batched gymnasium `VectorEnv`.
+
+`MadrasVectorEnv` runs N independent copies of a one-learner scenario in one
+`madsim.physics.batch.WorldBatch`: every tick advances all running episodes (and computes their
+sensors) in one compiled call, and the agent side (actions, the T-S PID, observations, rewards,
+dones) is done with numpy over the episodes. Each episode keeps its own track, cars, traffic,
+random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
+`MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
+`gymnasium.vector.SyncVectorEnv` over `MadrasEnv`s). What stays in Python, per episode: resets
+(~0.3 ms each), traffic behaviours (one `act` per traffic car and tick), observation noise and
+focus readings, action noise draws, reward/done components registered without a batched form
+here, and contact resolution (only when the broad phase finds something near).
+
+Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
+Speed (benchmarks/bench_vector.py): ~100,000 env-steps/s from N = 64 up on one core of this
+project's 2-core machine, most of it physics; for a single episode `MadrasEnv` is faster (the
+numpy bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
+among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
+Not supported: scenarios with more than one learning agent or with communication (ConfigError);
+rendering.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from madsim.agents import dones as D
+from madsim.agents import rewards as R
+from madsim.agents.curriculum import apply_stage, stage_index
+from madsim.agents.observations import ObservationBuilder
+from madsim.agents.pid import SPEED_UNIT_KMH, PIDController
+from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
+from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_config
+from madsim.envs.core import SensorRow, default_traffic_factory, episode_seed
+from madsim.envs.episode import AssetCache, draw_plan, placements
+from madsim.physics.batch import WorldBatch
+from madsim.physics.sensors import (
+    O_ANGLE,
+    O_DAMAGE,
+    O_DRACED,
+    O_LASTLAP,
+    O_RACEPOS,
+    O_SX,
+    O_TPOS,
+    O_TRACK,
+)
+
+__all__ = ["MadrasVectorEnv", "make_vec"]
+
+TICK_S = R.TICK_S
+_STOP = (0.0, 0.0, 1.0)
+_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)     # madsim.agents.pid.speed_gear's thresholds
+
+
+def make_vec(config=None, num_envs: int = 1, **kwargs) -> MadrasVectorEnv:
+    """`MadrasVectorEnv(config, num_envs, **kwargs)`: num_envs episodes of a one-learner
+    scenario stepped as one batch. Keywords: traffic_factory, autoreset_mode ("NextStep",
+    "SameStep", "Disabled"), contact, fuel, damage, threads (see `MadrasVectorEnv`)."""
+    return MadrasVectorEnv(config, num_envs, **kwargs)
+
+
+def _speed_gear(speed_kmh: np.ndarray) -> np.ndarray:
+    """madsim.agents.pid.speed_gear over an array (float gears)."""
+    gear = np.ones(speed_kmh.shape)
+    for threshold in _GEAR_KMH:
+        gear += speed_kmh > threshold
+    return gear
+
+
+# --- rewards and dones over many episodes ------------------------------------------------------
+# Each mirrors one component of madsim.agents.rewards / dones, float for float: per-episode
+# parameters are copied from the component object built for the episode's stage, per-episode
+# state lives in (n,) arrays. Call: (slots, prev, cur, length, collision) with prev, cur (m, 79)
+# sensor rows of the learners, length (m,) track lengths m, collision (m,) bool.
+
+
+class _Batched:
+    params: tuple[str, ...] = ()
+
+    def __init__(self, n: int):
+        for p in self.params:
+            setattr(self, p, np.zeros(n))
+
+    def start(self, e: int, comp, length: float) -> None:
+        for p in self.params:
+            getattr(self, p)[e] = getattr(comp, p)
+
+
+class _Progress(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return (cur[:, O_DRACED] - prev[:, O_DRACED]) / length
+
+
+class _Progress2(_Batched):
+    params = ("per_tick",)
+
+    def __call__(self, slots, prev, cur, length, collision):
+        return np.minimum(1.0, (cur[:, O_DRACED] - prev[:, O_DRACED]) / self.per_tick[slots])
+
+
+class _Progress3(_Progress2):
+    def __call__(self, slots, prev, cur, length, collision):
+        return (cur[:, O_DRACED] - prev[:, O_DRACED]) / self.per_tick[slots]
+
+
+class _AvgSpeed(_Batched):
+    params = ("target_speed",)
+
+    def __init__(self, n):
+        super().__init__(n)
+        self.ticks = np.zeros(n, dtype=np.int64)
+        self.laps_paid = np.zeros(n, dtype=np.int64)
+
+    def start(self, e, comp, length):
+        super().start(e, comp, length)
+        self.ticks[e] = self.laps_paid[e] = 0
+
+    def __call__(self, slots, prev, cur, length, collision):
+        self.ticks[slots] += 1
+        out = np.zeros(slots.shape[0])
+        pay = ~(cur[:, O_DRACED] < (self.laps_paid[slots] + 1) * length)
+        if pay.any():
+            e = slots[pay]
+            self.laps_paid[e] += 1
+            avg_speed = length[pay] / (self.ticks[e] * TICK_S)
+            self.ticks[e] = 0
+            out[pay] = avg_speed / self.target_speed[e]
+        return out
+
+
+def _hit(prev, cur, collision):
+    return collision | (cur[:, O_DAMAGE] > prev[:, O_DAMAGE])
+
+
+class _Collision(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return _hit(prev, cur, collision).astype(np.float64)
+
+
+class _TurnBackward(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return (np.cos(cur[:, O_ANGLE]) < 0.0).astype(np.float64)
+
+
+def _wrap(a):
+    return a - 2.0 * math.pi * np.floor((a + math.pi) / (2.0 * math.pi))
+
+
+class _AngularAcceleration(_Batched):
+    params = ("reference", "threshold")
+
+    def __init__(self, n):
+        super().__init__(n)
+        self.history = np.zeros((n, 2))
+        self.fresh = np.ones(n, dtype=bool)
+
+    def start(self, e, comp, length):
+        super().start(e, comp, length)
+        self.fresh[e] = True
+
+    def __call__(self, slots, prev, cur, length, collision):
+        fresh = self.fresh[slots]
+        self.history[slots[fresh]] = prev[fresh, O_ANGLE, None]
+        self.fresh[slots] = False
+        a0, a1 = self.history[slots, 0], self.history[slots, 1]
+        a2 = cur[:, O_ANGLE]
+        self.history[slots, 0], self.history[slots, 1] = a1, a2
+        acc = np.abs(_wrap(a2 - a1) - _wrap(a1 - a0))
+        return np.where(acc > self.threshold[slots], acc / self.reference[slots], 0.0)
+
+
+class _SuccessfulOvertake(_Batched):
+    def __init__(self, n):
+        super().__init__(n)
+        self.best = np.zeros(n)
+        self.fresh = np.ones(n, dtype=bool)
+
+    def start(self, e, comp, length):
+        self.fresh[e] = True
+
+    def __call__(self, slots, prev, cur, length, collision):
+        fresh = self.fresh[slots]
+        self.best[slots[fresh]] = prev[fresh, O_RACEPOS]
+        self.fresh[slots] = False
+        gained = self.best[slots] - cur[:, O_RACEPOS]
+        up = gained > 0
+        self.best[slots[up]] = cur[up, O_RACEPOS]
+        return np.where(up, gained, 0.0)
+
+
+class _RankOne(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return (cur[:, O_RACEPOS] == 1.0).astype(np.float64)
+
+
+class _Task(_Batched):
+    params = ("position", "bonus")
+
+    def __init__(self, n):
+        super().__init__(n)
+        self.paid = np.zeros(n, dtype=bool)
+
+    def start(self, e, comp, length):
+        super().start(e, comp, length)
+        self.paid[e] = False
+
+    def __call__(self, slots, prev, cur, length, collision):
+        pay = ~(self.paid[slots] | (cur[:, O_RACEPOS] > self.position[slots]))
+        self.paid[slots[pay]] = True
+        return np.where(pay, self.bonus[slots], 0.0)
+
+
+class _RaceOver(_Batched):
+    params = ("laps",)
+
+    def __call__(self, slots, prev, cur, length, collision):
+        return cur[:, O_DRACED] >= self.laps[slots] * length
+
+
+class _LapCompleted(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return (cur[:, O_LASTLAP] > 0.0) & (cur[:, O_LASTLAP] != prev[:, O_LASTLAP])
+
+
+class _TimeOut(_Batched):
+    def __init__(self, n):
+        super().__init__(n)
+        self.ticks = np.zeros(n, dtype=np.int64)
+        self.limit = np.zeros(n, dtype=np.int64)
+
+    def start(self, e, comp, length):
+        limit = comp.max_steps
+        if limit is None:
+            limit = math.ceil(length / (comp.target_speed * TICK_S))
+        self.limit[e] = limit
+        self.ticks[e] = 0
+
+    def __call__(self, slots, prev, cur, length, collision):
+        self.ticks[slots] += 1
+        return self.ticks[slots] >= self.limit[slots]
+
+
+class _CollisionDone(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return _hit(prev, cur, collision)
+
+
+class _TurnBackwardDone(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return np.cos(cur[:, O_ANGLE]) < 0.0
+
+
+class _OutOfTrack(_Batched):
+    params = ("low", "high")
+
+    def __call__(self, slots, prev, cur, length, collision):
+        pos = cur[:, O_TPOS]
+        return ((pos < self.low[slots]) | (pos > self.high[slots])
+                | (cur[:, O_TRACK:O_TRACK + 19].min(axis=1) < 0.0))
+
+
+class _Rank1(_Batched):
+    def __call__(self, slots, prev, cur, length, collision):
+        return cur[:, O_RACEPOS] == 1.0
+
+
+_BATCHED = {
+    R.Progress: _Progress, R.Progress2: _Progress2, R.Progress3: _Progress3,
+    R.AvgSpeed: _AvgSpeed, R.Collision: _Collision, R.TurnBackward: _TurnBackward,
+    R.AngularAcceleration: _AngularAcceleration, R.SuccessfulOvertake: _SuccessfulOvertake,
+    R.RankOne: _RankOne, R.Task: _Task,
+    D.RaceOver: _RaceOver, D.LapCompleted: _LapCompleted, D.TimeOut: _TimeOut,
+    D.Collision: _CollisionDone, D.TurnBackward: _TurnBackwardDone, D.OutOfTrack: _OutOfTrack,
+    D.Rank1: _Rank1,
+}
+
+
+class _Scalar(_Batched):
+    """A component without a batched form (e.g. one added with register_reward): one copy of
+    the scalar object per episode, called with SensorRows, episode by episode."""
+
+    def __init__(self, n: int, cast):
+        super().__init__(n)
+        self.cast = cast
+        self.objects: list = [None] * n
+        self.actions: list = []         # the step's checked actions of the episodes called
+
+    def start(self, e, comp, length):
+        obj = copy.deepcopy(comp)
+        obj.reset()
+        self.objects[e] = obj
+
+    def __call__(self, slots, prev, cur, length, collision):
+        out = np.zeros(slots.shape[0], dtype=self.cast)
+        for i, (e, p, c) in enumerate(zip(slots.tolist(), prev.tolist(), cur.tolist())):
+            info = {"track_length": float(length[i]), "collision": bool(collision[i])}
+            out[i] = self.cast(self.objects[e](SensorRow(p), SensorRow(c), self.actions[i], info))
+        return out
+
+
+def _batched(comp, n: int, cast) -> _Batched:
+    cls = _BATCHED.get(type(comp))
+    return _Scalar(n, cast) if cls is None else cls(n)
+
+
+class _BatchedPID:
+    """madsim.agents.pid.PID over episodes: integral, previous error, first-call flag."""
+
+    def __init__(self, pid, n: int):
+        self.kp, self.ki, self.kd = pid.kp, pid.ki, pid.kd
+        self.limits, self.kick_free = pid.limits, pid.kick_free
+        self.integral = np.zeros(n)
+        self.prev = np.zeros(n)
+        self.first = np.ones(n, dtype=bool)
+
+    def reset(self, e: int) -> None:
+        self.integral[e] = self.prev[e] = 0.0
+        self.first[e] = True
+
+    def __call__(self, slots, error):
+        prev = self.prev[slots]
+        if self.kick_free:
+            prev = np.where(self.first[slots], error, prev)
+        self.first[slots] = False
+        derivative = error - prev
+        self.prev[slots] = error
+        held = self.integral[slots]
+        integral = held + error
+        out = self.kp * error + self.ki * integral + self.kd * derivative
+        if self.limits is not None:
+            low, high = self.limits
+            hold = ((out > high) & (error > 0.0)) | ((out < low) & (error < 0.0))
+            if hold.any():
+                integral = np.where(hold, held, integral)
+                held_out = self.kp * error + self.ki * integral + self.kd * derivative
+                out = np.where(hold, held_out, out)
+        self.integral[slots] = integral
+        return out
+
+
+class _BatchedTS:
+    """madsim.agents.pid.TrackSpeedController (with its PIDController) over episodes."""
+
+    def __init__(self, pid: PIDController, track_limits, normalised: bool, n: int):
+        self.compat = pid.compat
+        self.accel_pid = _BatchedPID(pid.accel_pid, n)
+        self.steer_pid = _BatchedPID(pid.steer_pid, n)
+        self.accel_scale, self.steer_scale = pid.accel_scale, pid.steer_scale
+        self.low, self.high = float(track_limits[0]), float(track_limits[1])
+        self.normalised = normalised
+        self.target_speed = np.zeros(n)
+        self.lane_des, self.speed_des_kmh = np.zeros(n), np.zeros(n)
+        self.prev_lane, self.prev_angle, self.prev_vel = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.fresh = np.ones(n, dtype=bool)
+
+    def reset(self, e: int, row: np.ndarray, target_speed: float) -> None:
+        self.accel_pid.reset(e)
+        self.steer_pid.reset(e)
+        self.prev_lane[e] = self.prev_angle[e] = self.prev_vel[e] = 0.0
+        if not self.compat:
+            self._update(np.array([e]), row[None, :])
+        self.lane_des[e] = self.speed_des_kmh[e] = 0.0
+        self.fresh[e] = True
+        self.target_speed[e] = target_speed
+
+    def _update(self, slots, rows) -> None:
+        self.prev_lane[slots] = rows[:, O_TPOS]
+        self.prev_angle[slots] = rows[:, O_ANGLE] / math.pi
+        self.prev_vel[slots] = rows[:, O_SX] / SPEED_UNIT_KMH
+
+    def set_action(self, slots, action) -> None:
+        a0, a1 = action[:, 0], action[:, 1]
+        if not self.normalised:
+            self.lane_des[slots], self.speed_des_kmh[slots] = a0, a1
+            return
+        span = self.high - self.low
+        lane = self.low + span * a0 if self.compat else self.low + span * (a0 + 1.0) / 2.0
+        self.lane_des[slots] = lane
+        self.speed_des_kmh[slots] = a1 * self.target_speed[slots] * 3.6
+
+    def act(self, slots, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(steer, accel, brake) of the coming tick from the latest sensor rows (m, 79)."""
+        update = ~self.fresh[slots] if self.compat else np.ones(slots.shape[0], dtype=bool)
+        self._update(slots[update], rows[update])
+        self.fresh[slots] = False
+        lane_error = self.prev_lane[slots] - self.lane_des[slots]
+        steer_error = self.prev_angle[slots] - lane_error * self.steer_scale
+        speed_error = self.speed_des_kmh[slots] / SPEED_UNIT_KMH - self.prev_vel[slots]
+        accel_error = speed_error * self.accel_scale
+        steer = self.steer_pid(slots, steer_error)
+        accel = self.accel_pid(slots, accel_error)
+        if self.compat:
+            return steer, accel, np.where(accel < 0.0, 1.0, 0.0)
+        return (np.minimum(1.0, np.maximum(-1.0, steer)), np.minimum(1.0, np.maximum(0.0, accel)),
+                np.minimum(1.0, np.maximum(0.0, -accel)))
+
+
+class _Stage:
+    """One curriculum stage's scenario and the scalar components its episodes copy from."""
+
+    def __init__(self, cfg: ScenarioConfig):
+        self.cfg = cfg
+        agent, s = cfg.agents[0], cfg.server
+        self.agent = agent
+        self.rewards = R.RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed)
+        self.dones = D.DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
+                                          track_limits=s.track_limits,
+                                          target_speed=agent.target_speed)
+
+
+class MadrasVectorEnv(VectorEnv):
+    """
+    ## Description
+    `num_envs` independent episodes of a one-learner MADRaS scenario (see `MadrasEnv`),
+    stepped together: one batched World advances every running episode each tick. Cars of
+    different episodes never meet (no contact, no opponent readings, separate race positions);
+    each episode has its own track, cars, traffic, random streams, curriculum stage and
+    autoreset. Episode e behaves exactly as `MadrasEnv(config)` reset with the e-th seed.
+
+    ## Action Space
+    `single_action_space`: the learner's Box (as `MadrasEnv`); `action_space` batches it:
+    (num_envs, dim) float32. A NaN or a wrong shape raises ValueError naming the episode.
+
+    ## Observation Space
+    `single_observation_space` as `MadrasEnv`; observations come as (num_envs, size) float32.
+
+    ## Rewards
+    (num_envs,) float64, as `MadrasEnv` per episode.
+
+    ## Starting State
+    `reset(seed=s)` seeds episode e with s + e (a list gives one seed per episode; None draws
+    from each episode's generator), as `gymnasium.vector.SyncVectorEnv` does; `options` as
+    `MadrasEnv` (`{"episode": k}`), plus `reset_mask` ((num_envs,) bool) to reset some only.
+
+    ## Episode Termination
+    As `MadrasEnv`, per episode. `autoreset_mode` (gymnasium): "NextStep" (default; the step
+    after an episode ended resets it, ignores its action and returns its first observation with
+    reward 0 and both flags False), "SameStep" (it is reset in the step that ended it; the last
+    observation and info are in `infos["final_obs"]`, `infos["final_info"]`) or "Disabled"
+    (reset ended episodes with `reset(options={"reset_mask": ...})`).
+
+    ## Arguments
+    `config` (path, mapping or ScenarioConfig, one learning agent, no communication),
+    `num_envs`, `traffic_factory` (as `MadrasEnv`), `autoreset_mode`; `contact`, `fuel`,
+    `damage` as `LocalBackend`; `threads`: share the episodes among numba's threads
+    (bit-identical results). Infos are gymnasium vector infos (arrays with `_key` masks) of the
+    `MadrasEnv` infos: reset: seed, episode, stage, track, track_length, car, cars, traffic,
+    traffic_count, row, placement; step: reward_terms, dones, ticks.
+    `curriculum_progress`: (num_envs,) int array, one counter per episode, writable.
+
+    ## Version History
+    - v0: first version (madsim 0.1).
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": [], "render_fps": 50,
+                                "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, config=None, num_envs: int = 1, *, traffic_factory=None,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 contact: bool = True, fuel: bool = False, damage: bool = True,
+                 threads: bool = False):
+        cfg = config if isinstance(config, ScenarioConfig) else load_config(config)
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) \
+                or num_envs < 1:
+            raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        if len(cfg.agents) != 1:
+            raise ConfigError(f"make_vec drives one learning car per episode, the config has "
+                              f"{len(cfg.agents)}", key="agents")
+        if cfg.agents[0].communication is not None:
+            raise ConfigError("make_vec does not support communication",
+                              key="agents[0].communication")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = dict(self.metadata, autoreset_mode=self.autoreset_mode)
+        self.config = cfg
+        self.num_envs = n = int(num_envs)
+        self.render_mode = None
+        agent = cfg.agents[0]
+        self.agent = agent.name
+        limits = cfg.server.track_limits
+        self.single_action_space = action_space(agent, limits)
+        self.builder = ObservationBuilder.from_config(agent.observation)
+        self.single_observation_space = self.builder.space
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self._low = self.single_action_space.low.astype(np.float64)
+        self._high = self.single_action_space.high.astype(np.float64)
+        self._dim = self._low.shape[0]
+        self._ts = agent.action.space == "TS"
+        self._normalised = agent.action.normalised
+        self._manual = agent.gear == "manual"
+        self.ticks_per_step = agent.pid.latency if self._ts else 1
+
+        stage_cfgs = [cfg] if cfg.curriculum is None else [
+            apply_stage(cfg, st) for st in cfg.curriculum.stages]
+        self._stages = [_Stage(c) for c in stage_cfgs]
+        capacity = 1 + max(len(c.traffic) if c.server.traffic_count is None
+                           else c.server.traffic_count[1] for c in stage_cfgs)
+        self._factory = traffic_factory
+        if self._factory is None and capacity > 1 and any(c.traffic for c in stage_cfgs):
+            self._factory = default_traffic_factory()
+        first = self._stages[0]
+        self._rewards = [(name, w, _batched(c, n, float))
+                         for name, w, c in first.rewards.components]
+        self._dones = [(name, c.truncation, _batched(c, n, bool))
+                       for name, c in first.dones.components]
+        self._scalar = any(isinstance(b, _Scalar) for _, _, b in self._rewards + self._dones)
+        self._pid = (_BatchedTS(PIDController.from_config(agent.pid), limits, self._normalised, n)
+                     if self._ts else None)
+        needs_focus = "focus" in self.builder.fields
+        self.batch = WorldBatch(n, capacity, contact=contact, fuel=fuel, damage=damage,
+                                threads=threads, focus=needs_focus,
+                                angles_deg=RANGEFINDER_ANGLES_DEG)
+        self.assets = AssetCache()
+
+        # per episode
+        self._np_random: list = [None] * n         # each episode's gymnasium Env.np_random
+        self._action_rng: list = [None] * n
+        self._behaviours: list[list] = [[] for _ in range(n)]
+        self._behaviour_cache: dict = {}           # (episode, stage, entry) -> behaviour
+        self._n_traffic = np.zeros(n, dtype=np.int64)
+        self._stage_of = np.zeros(n, dtype=np.int64)
+        self._episode = np.full(n, -1, dtype=np.int64)
+        self._resets = np.zeros(n, dtype=np.int64)
+        self._progress = np.zeros(n, dtype=np.int64)
+        self._row = np.zeros(n, dtype=np.int64)    # the learner's row in the batch
+        self._length = np.zeros(n)
+        self._noise_std = np.zeros(n)
+        self._sab = np.tile(_STOP, (n, 1))
+        self._gear = np.ones(n)
+        self._live = np.zeros(n, dtype=bool)
+        self._started = False
+        self._obs = np.zeros((n, self.builder.size), dtype=np.float32)
+        self._dones_template = np.empty(n, dtype=object)
+        for e in range(n):
+            self._dones_template[e] = ()
+
+    @property
+    def curriculum_progress(self) -> np.ndarray:
+        """(num_envs,) episodes started (or steps taken, per the curriculum's unit) so far,
+        one counter per episode (MadrasEnv.curriculum_progress of each)."""
+        return self._progress
+
+    @curriculum_progress.setter
+    def curriculum_progress(self, value) -> None:
+        self._progress[:] = np.broadcast_to(np.asarray(value, dtype=np.int64), self._progress.shape)
+
+    # --- episodes ----------------------------------------------------------------------------
+
+    def reset(self, *, seed: int | list | None = None, options: dict[str, Any] | None = None):
+        """Reset every episode (or those in options["reset_mask"]); returns (obs, infos)."""
+        n = self.num_envs
+        if seed is None:
+            seeds = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"reset: {len(seeds)} seeds for {n} episodes")
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(n, dtype=bool)
+        else:
+            mask = np.asarray(mask)
+            if mask.shape != (n,) or mask.dtype != np.bool_ or not mask.any():
+                raise ValueError(f'options["reset_mask"] must be a (num_envs,) = ({n},) bool '
+                                 'array with at least one True')
+        slots = np.flatnonzero(mask)
+        infos = self._reset_slots(slots, [seeds[e] for e in slots], options)
+        self._started = True
+        return self._obs.copy(), infos
+
+    def _reset_slots(self, slots: np.ndarray, seeds: list, options: dict) -> dict:
+        """MadrasEnv.reset (MadrasCore.new_episode) for each episode in `slots`."""
+        episode_opt = options.get("episode")
+        if episode_opt is not None and (isinstance(episode_opt, bool) or not isinstance(
+                episode_opt, (int, np.integer)) or episode_opt < 0):
+            raise ValueError(f'options["episode"] must be an int >= 0, got {episode_opt!r}')
+        cur = self.config.curriculum
+        started = []
+        for e, seed in zip(slots.tolist(), seeds):
+            if seed is not None:
+                self._np_random[e], _ = seeding.np_random(seed)
+            elif self._np_random[e] is None:
+                self._np_random[e], _ = seeding.np_random()
+            ep_seed = episode_seed(seed, self._np_random[e])
+            self._episode[e] = 0 if seed is not None else self._episode[e] + 1
+            if episode_opt is not None:
+                self._episode[e] = int(episode_opt)
+            if self._resets[e] and cur is not None and cur.unit == "episodes":
+                self._progress[e] += 1
+            self._resets[e] += 1
+            stage = 0 if cur is None else stage_index(cur, int(self._progress[e]))
+            started.append(self._start(e, ep_seed, int(self._episode[e]), stage))
+        mask = np.zeros(self.num_envs, dtype=bool)
+        mask[slots] = True
+        batch = self.batch
+        batch.sense(mask)
+        wait = self.config.server.init_wait * self.ticks_per_step
+        rows = self._row[slots]
+        for _ in range(wait):           # MADRaS devel's init_wait: stop action, traffic drives
+            batch.controls[rows, :3] = _STOP
+            batch.controls[rows, 3] = _speed_gear(batch.sensors[rows, O_SX])
+            self._traffic_controls(slots)
+            batch.step(mask)
+        infos: dict = {}
+        for e, info in zip(slots.tolist(), started):
+            st = self._stages[self._stage_of[e]]
+            length = self._length[e]
+            for (_, _, b), (_, _, c) in zip(self._rewards, st.rewards.components):
+                b.start(e, c, length)
+            for (_, _, b), (_, c) in zip(self._dones, st.dones.components):
+                b.start(e, c, length)
+            if self._pid is not None:
+                self._pid.reset(e, batch.sensors[self._row[e]], st.agent.target_speed)
+            self._sab[e] = _STOP
+            infos = self._add_info(infos, info, e)
+        self._obs[slots] = self._observe(rows)
+        self._live[slots] = True
+        return infos
+
+    def _start(self, e: int, seed: int, episode: int, stage_i: int) -> dict:
+        """MadrasCore.reset up to init_wait: draws, placements, the batch slot, traffic."""
+        self._stage_of[e] = stage_i
+        stage = self._stages[stage_i]
+        cfg = stage.cfg
+        scenario_ss, obs_ss, action_ss, traffic_ss = np.random.SeedSequence(seed).spawn(4)
+        scenario_rng = np.random.default_rng(scenario_ss)
+        self._action_rng[e] = np.random.default_rng(action_ss)
+        plan = draw_plan(cfg, episode, seed, scenario_rng)
+        track = self.assets.track(plan.track)
+        cars = [self.assets.car(c) for c in plan.cars]
+        where = placements(cfg, plan, track, scenario_rng)
+        self.batch.start(e, (plan.track, plan.cars), track, cars, where,
+                         noisy=cfg.server.observation_noise, rng=np.random.default_rng(obs_ss))
+        k = plan.row(self.agent)
+        self._row[e] = self.batch.offsets[e] + k
+        self._length[e] = track.length
+        self._noise_std[e] = stage.agent.action_noise_std
+        behaviours = []
+        for j, ss in enumerate(traffic_ss.spawn(plan.n_traffic)):
+            b = self._behaviour_cache.get((e, stage_i, j))
+            if b is None:
+                b = self._behaviour_cache[(e, stage_i, j)] = self._factory(cfg.traffic[j])
+            b.reset(np.random.default_rng(ss), {
+                "track_length": track.length, "track_width": track.width, "index": j,
+                "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
+                "placement": (float(where[j, 0]), float(where[j, 1]))})
+            behaviours.append(b)
+        self._behaviours[e] = behaviours
+        self._n_traffic[e] = len(behaviours)
+        return {"seed": plan.seed, "episode": plan.episode, "stage": stage_i,
+                "track": plan.track, "track_length": float(track.length), "cars": plan.cars,
+                "traffic": tuple(t.behaviour for t in plan.traffic),
+                "traffic_count": plan.n_traffic, "car": plan.agent_cars[0], "row": k,
+                "placement": (float(where[k, 0]), float(where[k, 1]))}
+
+    def _traffic_controls(self, slots) -> None:
+        u, flat = self.batch.controls, self.batch.sensors
+        for e in slots.tolist():
+            behaviours = self._behaviours[e]
+            if behaviours:
+                a = int(self.batch.offsets[e])
+                for j, values in enumerate(flat[a:a + len(behaviours)].tolist()):
+                    steer, accel, brake, gear = behaviours[j].act(SensorRow(values))
+                    u[a + j, 0], u[a + j, 1], u[a + j, 2], u[a + j, 3] = steer, accel, brake, gear
+
+    def _observe(self, rows: np.ndarray) -> np.ndarray:
+        """ObservationBuilder.from_wire over many rows (the same arithmetic, row by row)."""
+        b = self.builder
+        return b._finish(self.batch.sensors[rows][:, b._wire_index])
+
+    # --- step --------------------------------------------------------------------------------
+
+    def step(self, actions):
+        """One env step of every episode; returns (obs, rewards, terminations, truncations,
+        infos) as arrays over episodes (see the class docstring for autoreset)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        n = self.num_envs
+        try:
+            a = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions are not numeric: {actions!r}") from None
+        if a.shape != (n, self._dim):
+            raise ValueError(f"actions must have shape (num_envs, {self._dim}) = ({n}, "
+                             f"{self._dim}), got {a.shape}")
+        resetting = ~self._live
+        if resetting.any() and self.autoreset_mode == AutoresetMode.DISABLED:
+            raise RuntimeError(f"episodes {np.flatnonzero(resetting).tolist()} are over: reset "
+                               'them with reset(options={"reset_mask": ...})')
+        slots = np.flatnonzero(self._live)
+        rewards = np.zeros(n)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        infos: dict = {}
+        if slots.size:
+            chosen = a[slots]
+            bad = ~np.isfinite(chosen)
+            if bad.any():
+                i, j = np.argwhere(bad)[0]
+                raise ValueError(f"action for episode {slots[i]} has a non-finite value at "
+                                 f"index {j}: {chosen[i, j]}")
+            chosen = np.minimum(self._high, np.maximum(self._low, chosen))
+            infos = self._step_slots(slots, chosen, rewards, terminated, truncated)
+        if resetting.any() and self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            infos = self._merge(infos, self._reset_slots(np.flatnonzero(resetting),
+                                                         [None] * int(resetting.sum()), {}))
+        ended = np.flatnonzero(terminated | truncated)
+        if ended.size and self.autoreset_mode == AutoresetMode.SAME_STEP:
+            step_infos = self._slot_infos(infos, ended)
+            infos = _drop(infos, ended)
+            for e, info in zip(ended.tolist(), step_infos):
+                infos = self._add_info(infos, {"final_obs": self._obs[e].copy(),
+                                               "final_info": info}, e)
+            infos = self._merge(infos, self._reset_slots(ended, [None] * ended.size, {}))
+        return self._obs.copy(), rewards, terminated, truncated, infos
+
+    def _step_slots(self, slots, chosen, rewards, terminated, truncated) -> dict:
+        """MadrasCore.step for the episodes `slots` with their checked actions (m, dim)."""
+        batch = self.batch
+        u, flat, hits = batch.controls, batch.sensors, batch.hits
+        if self._scalar:
+            checked = chosen.tolist()       # what MadrasCore hands to rewards and dones
+        noisy = np.flatnonzero(self._noise_std[slots] > 0.0)
+        if noisy.size:
+            noise = np.zeros_like(chosen)
+            for i in noisy.tolist():
+                e = slots[i]
+                noise[i] = self._action_rng[e].normal(0.0, self._noise_std[e], self._dim)
+            moved = chosen[noisy] + noise[noisy]
+            chosen[noisy] = np.minimum(self._high, np.maximum(self._low, moved))
+        if self._manual:
+            g = chosen[:, -1]
+            # Python's round() and np.round both round halves to even
+            self._gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self._normalised else g)
+        if self._ts:
+            self._pid.set_action(slots, chosen)
+        elif self._normalised:
+            self._sab[slots] = np.stack([chosen[:, 0], (chosen[:, 1] + 1.0) / 2.0,
+                                         (chosen[:, 2] + 1.0) / 2.0], axis=1)
+        else:
+            self._sab[slots] = chosen[:, :3]
+        m = slots.shape[0]
+        total = np.zeros(m)
+        terms = None
+        ticks = np.zeros(m, dtype=np.int64)
+        term, trunc = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
+        fired = np.zeros((m, len(self._dones)), dtype=bool)
+        running = np.arange(m)
+        mask = np.zeros(self.num_envs, dtype=bool)
+        traffic = bool(self._n_traffic[slots].any())
+        for _ in range(self.ticks_per_step):
+            run = slots[running]
+            rows = self._row[run]
+            prev = flat[rows]
+            if self._ts:
+                u[rows, 0], u[rows, 1], u[rows, 2] = self._pid.act(run, prev)
+            else:
+                u[rows, :3] = self._sab[run]
+            u[rows, 3] = self._gear[run] if self._manual else _speed_gear(prev[:, O_SX])
+            if traffic:
+                self._traffic_controls(run)
+            mask[:] = False
+            mask[run] = True
+            batch.step(mask)
+            cur = flat[rows]
+            length = self._length[run]
+            collision = hits[rows]
+            if self._scalar:
+                for _, _, comp in self._rewards + self._dones:
+                    if isinstance(comp, _Scalar):
+                        comp.actions = [checked[i] for i in running.tolist()]
+            r = np.zeros(run.shape[0])
+            values = []
+            for _, weight, comp in self._rewards:
+                v = weight * comp(run, prev, cur, length, collision)
+                values.append(v)
+                r += v
+            total[running] += r
+            if terms is None:
+                terms = values
+            else:
+                for acc, v in zip(terms, values):
+                    acc[running] += v
+            ticks[running] += 1
+            d_term = np.zeros(run.shape[0], dtype=bool)
+            d_trunc = np.zeros(run.shape[0], dtype=bool)
+            d_fired = np.empty((run.shape[0], len(self._dones)), dtype=bool)
+            for j, (_, is_trunc, comp) in enumerate(self._dones):
+                d_fired[:, j] = hit = comp(run, prev, cur, length, collision)
+                if is_trunc:
+                    d_trunc |= hit
+                else:
+                    d_term |= hit
+            done = d_term | d_trunc
+            if done.any():
+                which = running[done]
+                term[which], trunc[which], fired[which] = d_term[done], d_trunc[done], d_fired[done]
+                u[rows[done], :3] = _STOP
+                u[rows[done], 4] = 0.0
+                running = running[~done]
+                if running.size == 0:
+                    break
+        self._obs[slots] = self._observe(self._row[slots])
+        rewards[slots] = total
+        terminated[slots], truncated[slots] = term, trunc
+        self._live[slots] = ~(term | trunc)
+        cur = self.config.curriculum
+        if cur is not None and cur.unit == "steps":
+            self._progress[slots] += 1
+        # vector infos as gymnasium's _add_info builds them from MadrasEnv's step infos
+        n = self.num_envs
+        stepped = np.zeros(n, dtype=bool)
+        stepped[slots] = True
+        reward_terms: dict = {}
+        for (name, _, _), v in zip(self._rewards, terms or [np.zeros(m)] * len(self._rewards)):
+            full = np.zeros(n)
+            full[slots] = v
+            reward_terms[name] = full
+            reward_terms["_" + name] = stepped.copy()
+        dones = self._dones_template.copy()
+        dones[~stepped] = None
+        names = [name for name, _, _ in self._dones]
+        for i in np.flatnonzero(fired.any(axis=1)).tolist():
+            dones[slots[i]] = tuple(nm for nm, f in zip(names, fired[i]) if f)
+        all_ticks = np.zeros(n, dtype=np.int64)
+        all_ticks[slots] = ticks
+        return {"reward_terms": reward_terms, "_reward_terms": stepped,
+                "dones": dones, "_dones": stepped.copy(),
+                "ticks": all_ticks, "_ticks": stepped.copy()}
+
+    def _slot_infos(self, infos: dict, slots) -> list[dict]:
+        """The MadrasEnv step infos of some episodes, taken out of the vector infos."""
+        out = []
+        terms = infos.get("reward_terms", {})
+        for e in slots.tolist():
+            out.append({"reward_terms": {k: float(v[e]) for k, v in terms.items()
+                                         if not k.startswith("_")},
+                        "dones": infos["dones"][e], "ticks": int(infos["ticks"][e])})
+        return out
+
+    def _merge(self, infos: dict, more: dict) -> dict:
+        """Vector infos of two disjoint sets of episodes in one (as _add_info would build)."""
+        for key, value in more.items():
+            if key.startswith("_") or key not in infos:
+                if key.startswith("_") and key in infos:
+                    infos[key] = infos[key] | value
+                else:
+                    infos[key] = value
+                continue
+            mask = more["_" + key]
+            if isinstance(value, dict):
+                infos[key] = self._merge(infos[key], value)
+            else:
+                infos[key][mask] = value[mask]
+        return infos
+
+    def close_extras(self, **kwargs) -> None:
+        self.batch = None
+
+
+def _drop(infos: dict, slots: np.ndarray) -> dict:
+    """Vector infos without the entries of `slots` (keys nobody has any more disappear)."""
+    out = {}
+    for key, value in infos.items():
+        if key.startswith("_"):
+            continue
+        mask = infos["_" + key].copy()
+        mask[slots] = False
+        if not mask.any():
+            continue
+        if isinstance(value, dict):
+            value = _drop(value, slots)
+        else:
+            value = value.copy()
+            value[slots] = None if value.dtype == object else 0
+        out[key], out["_" + key] = value, mask
+    return out
