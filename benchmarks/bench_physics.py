@@ -21,10 +21,12 @@ from madsim.tracks import load_track
 TARGETS = {"one": 100_000, "close": 3_000, "many": 500_000}
 
 
-def follow(world: World, u: np.ndarray, target_ms: np.ndarray, noise: float = 0.0, rng=None) -> None:
-    """Reference-style controller, vectorised: hold the centre line, P-control the speed."""
+def follow(world: World, u: np.ndarray, target_ms: np.ndarray, noise: float = 0.0, rng=None,
+           lane_n: np.ndarray | float = 0.0) -> None:
+    """Reference-style controller, vectorised: hold a lateral offset (default the centre line),
+    P-control the speed."""
     angle = (world.track_heading - world.yaw + math.pi) % (2 * math.pi) - math.pi
-    steer = (angle - 0.5 * world.n / (world.track.width / 2)) / 0.366519
+    steer = (angle - 0.5 * (world.n - lane_n) / (world.track.width / 2)) / 0.366519
     if noise:
         steer = steer + rng.normal(0.0, noise, world.n_cars)
     u[:, 0] = np.clip(steer, -1, 1)
@@ -108,7 +110,8 @@ def many(ticks: int, contact: bool, threads: bool) -> float:
     u[:, 3] = 4
     target = np.full(n, 25.0)
     w.step(u)
-    sec = timed(w, u, ticks, lambda: follow(w, u, target))
+    lanes_n = (lane - 1) * 5.0                     # each car keeps its own lane
+    sec = timed(w, u, ticks, lambda: follow(w, u, target, lane_n=lanes_n))
     rate = n / sec
     print(f"1000 cars spread, contact {'on' if w.contact_active else 'off'}, "
           f"{'threads' if threads else 'one thread'}: {rate:,.0f} car-ticks/s "
@@ -122,7 +125,7 @@ def main() -> int:
           f"numpy {np.__version__}")
     one_car(2000 if quick else 20000)
     ten_close(300 if quick else 2000)
-    for contact, threads in ((False, False), (True, False), (False, True)):
+    for contact, threads in ((False, False), (True, False), (False, True), (True, True)):
         many(20 if quick else 150, contact, threads)
     return 0
 

@@ -220,6 +220,9 @@ class SensorSuite:
         self.focus = FocusState(n)
         self.dist_origin = np.zeros(n)
         self._all = np.arange(n, dtype=np.int64)
+        self._all_active = np.ones(n, dtype=np.bool_)
+        track = world.track
+        self._track_args = (track.geo, track.runs, track.piece_run, track.width / 2)
         self.reset()
 
     def reset(self) -> None:
@@ -241,11 +244,11 @@ class SensorSuite:
     def frame(self, cars=None) -> SensorFrame:
         """Sensors of `cars` (default: all) at the world's current state, in SCR units."""
         w = self.world
-        track = w.track
         cars = self._all if cars is None else np.atleast_1d(np.asarray(cars, dtype=np.int64))
         flat = np.empty((cars.shape[0], N_VALUES))
-        sensor_kernel(cars, w.state, track.geo, track.runs, track.piece_run, track.width / 2,
-                      self.angles_deg, w.race_pos, self.dist_origin, _active(w), SENSOR_RANGE_M, flat)
+        geo, runs, piece_run, half = self._track_args
+        sensor_kernel(cars, w.state, geo, runs, piece_run, half, self.angles_deg, w.race_pos,
+                      self.dist_origin, _active(w, self), SENSOR_RANGE_M, flat)
         st = w.state
         due = ()
         if st.shape[0] and st[0, L.S_TIME] >= self.focus.earliest_s:   # one clock for all cars
@@ -253,17 +256,17 @@ class SensorSuite:
         for j in due:
             i = cars[j]
             centre = self.focus.requested_deg[i]
-            flat[j, O_FOCUS:O_FOCUS + 5] = track.rangefinders(
+            flat[j, O_FOCUS:O_FOCUS + 5] = w.track.rangefinders(
                 st[i:i + 1, L.S_X], st[i:i + 1, L.S_Y], st[i:i + 1, L.S_YAW], centre + np.arange(-2.0, 3.0),
                 s_hint=st[i:i + 1, L.S_S], max_range_m=SENSOR_RANGE_M)[0]
-        frame = SensorFrame.from_flat(flat, cars)
+        frame = SensorFrame(flat, cars)
         if self.noisy:
             apply_noise(frame, self.rng)
         return frame
 
 
-def _active(world) -> np.ndarray:
+def _active(world, suite) -> np.ndarray:
     """Cars still in the race (all, unless the world says otherwise)."""
     active = getattr(world, "active", None)
-    return np.ones(world.n_cars, dtype=np.bool_) if active is None else np.asarray(active, dtype=np.bool_)
+    return suite._all_active if active is None else np.asarray(active, dtype=np.bool_)
 

@@ -34,23 +34,26 @@ DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
 _STEPPERS: dict = {}
 
 
-def _contact_stepper(broad_phase):
+def _contact_stepper(broad_phase, parallel: bool = False):
     """Compiled sub-step loop that stops after the first sub-step at which the contact solver's
     broad phase finds a car near something (there, and only there, `resolve` has work to do).
+    `parallel`: the cars of each sub-step are shared among numba's threads (they are
+    independent within a sub-step, so results are bit-identical); the broad phase stays serial.
 
     Built per broad-phase function and not cached on disk: it links the contact module's
     compiled code, and numba's disk cache would not notice a change of that module.
     """
-    stepper = _STEPPERS.get(broad_phase)
+    key = (broad_phase, parallel)
+    stepper = _STEPPERS.get(key)
     if stepper is None:
         advance_car = kernel.advance_car
         s_piece = L.S_PIECE
 
-        @numba.njit(error_model="numpy")
+        @numba.njit(error_model="numpy", parallel=parallel)
         def stepper(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
                     x, y, yaw, piece, bp, near):
             for k in range(k0, nsub):
-                for i in range(st.shape[0]):
+                for i in numba.prange(st.shape[0]):
                     advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
                 for i in range(st.shape[0]):
                     piece[i] = int(st[i, s_piece])
@@ -59,7 +62,7 @@ def _contact_stepper(broad_phase):
                     return k + 1
             return nsub
 
-        _STEPPERS[broad_phase] = stepper
+        _STEPPERS[key] = stepper
     return stepper
 
 
@@ -138,7 +141,7 @@ class World:
             self._near = np.zeros(1, dtype=np.int64)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
-            self._stepper = _contact_stepper(self._solver.broad_phase_kernel)
+            self._stepper = _contact_stepper(self._solver.broad_phase_kernel, parallel)
         self.reset()
 
     # --- set-up -------------------------------------------------------------------------------
