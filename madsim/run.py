@@ -161,6 +161,8 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
             while True:
                 row = core.rows[me]
                 obs, reward, terminated, truncated, info = env.step(act(obs, row))
+                if step == 0:   # the first step may compile numba kernels: time from here
+                    start, sim0 = time.perf_counter(), world.time
                 _record(stats, world, core.track.width)
                 step += 1
                 if writer is not None and step % 2 == 0:

@@ -17,6 +17,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from madsim.agents.registry import registrar
 from madsim.agents.rewards import TICK_S
 
 __all__ = ["DONES", "DoneComponent", "DoneSet", "make_done"]
@@ -114,19 +115,7 @@ DONES: dict[str, type[DoneComponent]] = {
 }
 
 
-def register_done(name: str):
-    """Class decorator adding a DoneComponent subclass to `DONES` under `name`, so configs can use
-    it. Registering the same class twice is a no-op; another class under a taken name is an
-    error. Import the defining module wherever envs are made (spawned workers too)."""
-    def add(cls):
-        if not (isinstance(cls, type) and issubclass(cls, DoneComponent)):
-            raise TypeError(f"register_done: {cls!r} is not a DoneComponent subclass")
-        taken = DONES.get(name)
-        if taken is not None and taken is not cls:
-            raise ValueError(f"done name {name!r} is already registered by {taken.__qualname__}")
-        DONES[name] = cls
-        return cls
-    return add
+register_done = registrar(DONES, DoneComponent, "done")
 
 
 def make_done(name: str, **context) -> DoneComponent:

@@ -26,6 +26,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from madsim.agents.registry import registrar
+
 __all__ = [
     "REWARDS",
     "REWARD_ALIASES",
@@ -212,19 +214,7 @@ REWARDS: dict[str, type[RewardComponent]] = {
 }
 
 
-def register_reward(name: str):
-    """Class decorator adding a RewardComponent subclass to `REWARDS` under `name`, so configs can use
-    it. Registering the same class twice is a no-op; another class under a taken name is an
-    error. Import the defining module wherever envs are made (spawned workers too)."""
-    def add(cls):
-        if not (isinstance(cls, type) and issubclass(cls, RewardComponent)):
-            raise TypeError(f"register_reward: {cls!r} is not a RewardComponent subclass")
-        taken = REWARDS.get(name)
-        if taken is not None and taken is not cls:
-            raise ValueError(f"reward name {name!r} is already registered by {taken.__qualname__}")
-        REWARDS[name] = cls
-        return cls
-    return add
+register_reward = registrar(REWARDS, RewardComponent, "reward")
 
 # MADRaS class names (master and devel) -> madsim names
 REWARD_ALIASES = {

@@ -8,13 +8,13 @@ is killed in `finally`.
 from __future__ import annotations
 
 import csv
-import signal
-import socket
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+from udp import default_sigint as _default_sigint
+from udp import free_ports
 
 from madsim.agents.traffic_client import (
     behaviour_rng,
@@ -32,31 +32,6 @@ TRAFFIC = [sys.executable, "-m", "madsim.agents.traffic_client"]
 WAIT_S = 90.0           # bound on a whole race (start-up, numba cache, 400 ticks in lock-step)
 
 
-def free_ports(n: int) -> int:
-    """A base port such that base .. base+n-1 are free UDP ports on 127.0.0.1."""
-    for _ in range(100):
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            probe.bind(("127.0.0.1", 0))
-            base = probe.getsockname()[1]
-        if base + n > 65535:
-            continue
-        socks = []
-        try:
-            for p in range(base, base + n):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", p))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError(f"no {n} consecutive free UDP ports")
-
-
-def _default_sigint():
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def read_trace(path, n_cars: int):

@@ -20,6 +20,8 @@ import time
 
 import numpy as np
 import pytest
+from udp import default_sigint as _default_sigint
+from udp import free_ports
 
 from madsim.net import protocol as P
 from madsim.net.client import ScrClient, simple_driver
@@ -31,31 +33,6 @@ WAIT_S = 30.0                  # bound on anything else a test waits for (a busy
 SERVE = [sys.executable, "-m", "madsim.cli", "serve"]
 
 
-def free_ports(n: int) -> int:
-    """A base port such that base .. base+n-1 are free UDP ports on 127.0.0.1."""
-    for _ in range(100):
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            probe.bind(("127.0.0.1", 0))
-            base = probe.getsockname()[1]
-        if base + n > 65535:
-            continue
-        socks = []
-        try:
-            for p in range(base, base + n):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", p))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError(f"no {n} consecutive free UDP ports")
-
-
-def _default_sigint():
-    signal.signal(signal.SIGINT, signal.SIG_DFL)   # a background shell may have ignored it
 
 
 class Server:
