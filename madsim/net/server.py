@@ -334,11 +334,8 @@ class ScrServer:
         counted, unless it asks for a restart. For a client on timeout behaviour (sync, after
         its deadline) and in realtime mode the newest datagram is a late answer: it is used if
         no fresh answer comes this tick (and in sync mode the client is waited for again)."""
-        ready, _, _ = select.select([c.sock for c in cars], [], [], 0)
         late: dict[int, bytes] = {}
-        for c in cars:
-            if c.sock not in ready:
-                continue
+        for c in cars:          # non-blocking sockets: an empty queue is one failed recv
             keep_newest = self.mode == "realtime" or not c.sync
             while (got := self._recv(c)) is not None:
                 data, addr = got
@@ -354,6 +351,8 @@ class ScrServer:
 
     def _collect(self, cars: list[_Car], late: dict[int, bytes]) -> int | None:
         """Read this tick's controls per the clock mode; returns the car asking for restart."""
+        if not late and self.mode == "sync" and all(c.sync for c in cars):
+            return self._apply(cars, self._collect_sync(cars))
         got: dict[int, bytes] = dict(late)   # fresh answers replace late ones
         start = time.monotonic()
         if self.mode == "timeout":
@@ -389,6 +388,30 @@ class ScrServer:
                         del pending[sock]
             if tick_end is not None and (rest := tick_end - time.monotonic()) > 0:
                 time.sleep(rest)
+        return self._apply(cars, got)
+
+    def _collect_sync(self, cars: list[_Car]) -> dict[int, bytes]:
+        """Sync mode, every client answering in time so far (the usual tick): wait for each car's
+        answer until one shared deadline; a car silent past it goes to timeout behaviour."""
+        got: dict[int, bytes] = {}
+        deadline = time.monotonic() + self.client_deadline_s
+        for c in cars:
+            while (data := self._read_from_client(c)) is None:
+                wait = deadline - time.monotonic()
+                if wait <= 0:
+                    c.sync = False
+                    self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
+                             f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
+                             f"per tick until it answers again")
+                    break
+                select.select([c.sock], [], [], wait)
+            if data is not None:
+                got[c.index] = data
+        return got
+
+    def _apply(self, cars: list[_Car], got: dict[int, bytes]) -> int | None:
+        """Decode this tick's answers into each car's controls (silent cars keep theirs);
+        returns the car asking for a restart."""
         restart_by = None
         for c in cars:
             data = got.get(c.index)
