@@ -231,8 +231,9 @@ def cmd_serve(args) -> int:
 def cmd_drive(args) -> int:
     from madsim.net.client import ScrClient, simple_driver
 
+    drivers = {"simple": simple_driver}
     client = ScrClient(host=args.host, port=args.port, client_id=args.id)
-    outcome, steps = client.run(simple_driver, max_steps=args.max_steps)
+    outcome, steps = client.run(drivers[args.driver], max_steps=args.max_steps)
     print(f"madsim drive: {outcome} after {steps} steps")
     return 0
 
@@ -326,6 +327,8 @@ def build_parser() -> argparse.ArgumentParser:
     dv.add_argument("--host", default="127.0.0.1")
     dv.add_argument("--port", type=int, default=3001)
     dv.add_argument("--id", default="SCR")
+    dv.add_argument("--driver", choices=["simple"], default="simple",
+                    help="simple: steer to the track axis, slow for bends, shift by rpm")
     dv.add_argument("--max-steps", type=int, default=None)
     dv.set_defaults(func=cmd_drive)
 
