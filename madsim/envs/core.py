@@ -460,3 +460,18 @@ class MadrasCore:
 
     def close(self) -> None:
         self.backend.close()
+
+
+class CurriculumProgress:
+    """Mixin for the envs: `curriculum_progress`, the episodes started (or steps taken, per the
+    curriculum's unit) so far; a training callback may set it."""
+
+    core: MadrasCore
+
+    @property
+    def curriculum_progress(self) -> int:
+        return self.core.progress
+
+    @curriculum_progress.setter
+    def curriculum_progress(self, value: int) -> None:
+        self.core.progress = int(value)

@@ -6,12 +6,12 @@ from typing import Any, ClassVar
 
 import gymnasium
 
-from madsim.envs.core import MadrasCore
+from madsim.envs.core import CurriculumProgress, MadrasCore
 
 __all__ = ["MadrasEnv"]
 
 
-class MadrasEnv(gymnasium.Env):
+class MadrasEnv(CurriculumProgress, gymnasium.Env):
     """
     ## Description
     One learning car drives a TORCS-like race, possibly among programmed traffic cars, as in
@@ -96,15 +96,6 @@ class MadrasEnv(gymnasium.Env):
 
             self._view = EnvView(render_mode, **(render_options or {}))
             self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core)}
-
-    @property
-    def curriculum_progress(self) -> int:
-        """Episodes started (or steps taken, per the curriculum's unit) so far."""
-        return self.core.progress
-
-    @curriculum_progress.setter
-    def curriculum_progress(self, value: int) -> None:
-        self.core.progress = int(value)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

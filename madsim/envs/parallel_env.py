@@ -7,12 +7,12 @@ from typing import Any, ClassVar
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from madsim.envs.core import MadrasCore
+from madsim.envs.core import CurriculumProgress, MadrasCore
 
 __all__ = ["MadrasParallelEnv"]
 
 
-class MadrasParallelEnv(ParallelEnv):
+class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
     """
     ## Description
     Several learning cars race together, possibly among programmed traffic cars, as in
@@ -82,15 +82,6 @@ class MadrasParallelEnv(ParallelEnv):
 
     def action_space(self, agent: str):
         return self.action_spaces[agent]
-
-    @property
-    def curriculum_progress(self) -> int:
-        """Episodes started (or steps taken, per the curriculum's unit) so far."""
-        return self.core.progress
-
-    @curriculum_progress.setter
-    def curriculum_progress(self, value: int) -> None:
-        self.core.progress = int(value)
 
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None):
         if seed is not None or self._np_random is None:
