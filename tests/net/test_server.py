@@ -143,6 +143,26 @@ def controls(steer=0.0, accel=0.0, brake=0.0, gear=1, meta=0, focus=0) -> bytes:
 # --- a lap, several clients, the end of a race ---------------------------------------------
 
 
+
+def drive_in_background(server, warm_steps: int = 20):
+    """Drive the server's car with simple_driver in a daemon thread; returns (thread, step
+    counter [n], outcome list) once `warm_steps` states were answered (or WAIT_S passed)."""
+    steps, outcome = [0], []
+
+    def drive():
+        def count(state):
+            steps[0] += 1
+            return simple_driver(state)
+        with client(server) as c:
+            outcome.append(c.run(count, max_steps=100_000))
+
+    t = threading.Thread(target=drive, daemon=True)
+    t.start()
+    end = time.monotonic() + WAIT_S
+    while steps[0] < warm_steps and time.monotonic() < end:
+        time.sleep(0.01)
+    return t, steps, outcome
+
 def test_a_full_lap_ends_with_shutdown_after_a_state_that_carries_the_lap_time(serve):
     server = serve("--track", TRACK, "--laps", "1", "--countdown", "0")
     seen: list[dict] = []
@@ -299,21 +319,7 @@ def test_a_silent_client_in_sync_mode_is_warned_about_and_the_race_goes_on(serve
 
 def test_ten_thousand_random_datagrams_neither_crash_nor_steer_nor_stop_the_race(serve):
     server = serve("--track", TRACK, "--countdown", "0", "--client-deadline", "1")
-    steps = [0]
-    outcome = []
-
-    def drive():
-        def count(state):
-            steps[0] += 1
-            return simple_driver(state)
-        with client(server) as c:
-            outcome.append(c.run(count, max_steps=100_000))
-
-    t = threading.Thread(target=drive, daemon=True)
-    t.start()
-    end = time.monotonic() + WAIT_S
-    while steps[0] < 20 and time.monotonic() < end:
-        time.sleep(0.01)
+    t, steps, outcome = drive_in_background(server)
     rng = np.random.default_rng(20261121)
     fuzzers = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2)]
     try:
@@ -332,7 +338,8 @@ def test_ten_thousand_random_datagrams_neither_crash_nor_steer_nor_stop_the_race
         for f in fuzzers:
             f.close()
     after = steps[0]
-    while steps[0] < after + 300 and time.monotonic() < end + WAIT_S:
+    end = time.monotonic() + WAIT_S
+    while steps[0] < after + 300 and time.monotonic() < end:
         time.sleep(0.01)
     assert steps[0] >= after + 300, server.output      # the race still runs
     server.proc.send_signal(signal.SIGTERM)
@@ -464,19 +471,8 @@ def test_realtime_mode_paces_ticks_at_20_ms_of_wall_time(serve):
 def test_ctrl_c_stops_the_server_cleanly(serve, when):
     server = serve("--track", TRACK, "--countdown", "0")
     outcome = []
-    steps = [0]
     if when == "racing":
-        def drive():
-            def count(state):
-                steps[0] += 1
-                return simple_driver(state)
-            with client(server) as c:
-                outcome.append(c.run(count, max_steps=100_000))
-        t = threading.Thread(target=drive, daemon=True)
-        t.start()
-        end = time.monotonic() + WAIT_S
-        while steps[0] < 20 and time.monotonic() < end:
-            time.sleep(0.01)
+        t, steps, outcome = drive_in_background(server)
         assert steps[0] >= 20, server.output
     server.proc.send_signal(signal.SIGINT)
     assert server.wait_exit() == 0
