@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import math
 
 import numba
 import numpy as np
@@ -172,27 +173,10 @@ class World:
                 bad = np.argwhere(~np.isfinite(pl))[0]
                 raise ValueError(f"placements: car {bad[0]} {('s', 'n', 'speed')[bad[1]]} is not finite")
             s, off, speed = np.mod(pl[:, 0], tr.length), pl[:, 1], pl[:, 2]
-        g = np.broadcast_to(np.asarray(gears), (n,))
-        if not np.all(np.isfinite(g.astype(np.float64))):
-            raise ValueError("gears must be finite")
-        g = np.clip(np.rint(g).astype(np.int64), -1, self._top_gear)
-        x, y, _, heading = tr.pose(s, off)
         st = self.state
         st[:] = 0.0
-        cp = self._cp
-        st[:, L.S_X], st[:, L.S_Y], st[:, L.S_YAW] = x, y, heading
-        st[:, L.S_VXG], st[:, L.S_VYG] = speed * np.cos(heading), speed * np.sin(heading)
-        st[:, L.S_WF] = speed / cp[:, L.C_RAD]
-        st[:, L.S_WR] = speed / cp[:, L.C_RAD + 2]
-        st[:, L.S_GEAR] = g
-        ratio = cp[np.arange(n), L.C_RATIO + g + 1]
-        driven_w = np.where(cp[:, L.C_DRIVEN_R] > 0, st[:, L.S_WR], st[:, L.S_WF])
-        st[:, L.S_WE] = np.clip(np.abs(driven_w * ratio), cp[:, L.C_TICK], cp[:, L.C_MAXI])
         st[:, L.S_FUEL] = [c.fuel for c in self.cars]
-        for k in range(4):   # static loads of the dynamic mass
-            st[:, L.S_FZ + k] = cp[:, L.C_W0 + k] * (cp[:, L.C_MASS] + st[:, L.S_FUEL]) / cp[:, L.C_MASS]
-        st[:, L.S_PIECE] = tr.piece_at(s)
-        kernel.refresh(st, cp, self._pt, self._surf, self._tsc, False)
+        self._set_motion(np.arange(n), s, off, np.zeros(n), speed, gears)
         self.nan_count[:] = 0
         self.contact_wall[:] = False
         self.contact_car[:] = False
@@ -201,15 +185,70 @@ class World:
             self._solver.reset()
         self._update_race_pos()
 
+    def place(self, car: int, s: float, n: float = 0.0, *, yaw_rel: float = 0.0, speed: float = 0.0,
+              gear: int | None = None) -> None:
+        """Put one car at a pose, moving straight ahead: `s` m along the centre line from the start
+        line, `n` m from it (left +), heading `yaw_rel` rad from the track's tangent there (left +),
+        at `speed` m/s along its own heading, wheels rolling, yaw rate 0, static wheel loads.
+        `gear`: engaged gear (default: keep). Laps, times, damage and fuel are kept; the other
+        cars are untouched. Read its sensors with `SensorSuite(world).frame()`.
+        """
+        if not (isinstance(car, (int, np.integer)) and 0 <= car < self.n_cars):
+            raise ValueError(f"car must be an index in 0..{self.n_cars - 1}, got {car!r}")
+        vals = {"s": s, "n": n, "yaw_rel": yaw_rel, "speed": speed}
+        for name, v in vals.items():
+            if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v)):
+                raise ValueError(f"place: {name} must be a finite number, got {v!r}")
+        rows = np.array([car])
+        g = int(self.state[car, L.S_GEAR]) if gear is None else gear
+        self._set_motion(rows, np.array([float(s) % self.track.length]), np.array([float(n)]),
+                         np.array([float(yaw_rel)]), np.array([float(speed)]), g)
+        if self._solver is not None:
+            self._solver.reset()
+
+    def _set_motion(self, rows: np.ndarray, s, off, yaw_rel, speed, gears) -> None:
+        """Pose, velocity, wheel spin, engine speed and static loads of `rows`; then re-locate them."""
+        st, cp, tr = self.state, self._cp, self.track
+        m = rows.shape[0]
+        g = np.broadcast_to(np.asarray(gears), (m,))
+        if not np.all(np.isfinite(g.astype(np.float64))):
+            raise ValueError("gears must be finite")
+        g = np.clip(np.rint(g).astype(np.int64), -1, self._top_gear[rows])
+        x, y, _, heading = tr.pose(s, off)
+        yaw = heading + yaw_rel
+        keep = [L.S_FUEL, L.S_DAMAGE, L.S_LAPS, L.S_BACK, L.S_LAPSTART, L.S_CURLAP, L.S_LASTLAP,
+                L.S_BESTLAP, L.S_TIME]
+        kept = st[np.ix_(rows, keep)].copy()
+        st[rows, :] = 0.0
+        st[np.ix_(rows, keep)] = kept
+        st[rows, L.S_X], st[rows, L.S_Y], st[rows, L.S_YAW] = x, y, yaw
+        st[rows, L.S_VXG], st[rows, L.S_VYG] = speed * np.cos(yaw), speed * np.sin(yaw)
+        st[rows, L.S_WF] = speed / cp[rows, L.C_RAD]
+        st[rows, L.S_WR] = speed / cp[rows, L.C_RAD + 2]
+        st[rows, L.S_GEAR] = g
+        ratio = cp[rows, L.C_RATIO + g + 1]
+        driven_w = np.where(cp[rows, L.C_DRIVEN_R] > 0, st[rows, L.S_WR], st[rows, L.S_WF])
+        st[rows, L.S_WE] = np.clip(np.abs(driven_w * ratio), cp[rows, L.C_TICK], cp[rows, L.C_MAXI])
+        for k in range(4):   # static loads of the dynamic mass
+            st[rows, L.S_FZ + k] = (cp[rows, L.C_W0 + k] * (cp[rows, L.C_MASS] + st[rows, L.S_FUEL])
+                                    / cp[rows, L.C_MASS])
+        st[rows, L.S_PIECE] = tr.piece_at(s)
+        kernel.refresh(st, cp, self._pt, self._surf, self._tsc, False)
+
     # --- the tick -------------------------------------------------------------------------------
 
-    def step(self, controls) -> None:
-        """Advance exactly 0.02 s: 10 sub-steps of 0.002 s with `controls` held.
+    def step(self, controls, substeps: int = SUBSTEPS) -> None:
+        """Advance `substeps` sub-steps of 0.002 s (default 10: exactly 0.02 s) with `controls` held.
 
         controls: (N, 5) = steer [-1, 1] (left +), accel [0, 1], brake [0, 1], gear (integer,
         -1 reverse, 0 neutral, 1..top), clutch [0, 1]. Out-of-range values are clipped (gear
         rounded, then clipped); non-finite values follow `nan_policy`.
+        substeps: 1..100; TORCS's own driver-call schedule gives 10 or 11
+        (`madsim.physics.schedule.TorcsClock`).
         """
+        if substeps != SUBSTEPS and not (isinstance(substeps, (int, np.integer)) and 1 <= substeps <= 100):
+            raise ValueError(f"substeps must be an integer in 1..100, got {substeps!r}")
+        nsub = int(substeps)
         u = np.ascontiguousarray(controls, dtype=np.float64)
         if u.shape != (self.n_cars, 5):
             raise ValueError(f"controls must have shape ({self.n_cars}, 5) = "
@@ -228,22 +267,22 @@ class World:
         st = self.state
         if self._solver is None:
             self._advance(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
-                          u, SUBSTEPS, DT, self.fuel_on)
+                          u, nsub, DT, self.fuel_on)
         else:
-            self._step_with_contact(u)
+            self._step_with_contact(u, nsub)
         if self.n_cars > 1:
             self._update_race_pos()
 
-    def _step_with_contact(self, u: np.ndarray) -> None:
+    def _step_with_contact(self, u: np.ndarray, nsub: int) -> None:
         st, solver = self.state, self._solver
         wall = np.zeros(self.n_cars, dtype=bool)
         car = np.zeros(self.n_cars, dtype=bool)
         pairs: list[tuple[int, int]] = []
         cols, piece, near = self._contact_cols, self._piece_i, self._near
         k = 0
-        while k < SUBSTEPS:
+        while k < nsub:
             k = self._stepper(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
-                              u, k, SUBSTEPS, DT, self.fuel_on, cols[0], cols[1], cols[2], piece,
+                              u, k, nsub, DT, self.fuel_on, cols[0], cols[1], cols[2], piece,
                               solver.broad_phase_args, near)
             if near[0] == 0:
                 break
