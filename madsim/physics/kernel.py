@@ -34,7 +34,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV, P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND,
     P_LEN, P_R, P_S0, P_SA0, P_SAMESURF, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R,
     P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_X0, P_Y0, P_ZR0, P_ZR1, S_AX, S_AY, S_BACK,
-    S_BANKLOAD, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_FRIC, S_FUEL, S_FZ, S_GEAR, S_GX, S_GY,
+    S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_FRIC, S_FUEL, S_FZ, S_GEAR, S_GX, S_GY,
     S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ, S_ROLL, S_S, S_SHIFT, S_STEER,
     S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_WF, S_WR, S_X, S_Y, S_YAW, S_Z, T_LENGTH,
     T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
@@ -235,9 +235,6 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     if curv != 0.0:     # metres along the track at offset n on a curve
         dz_dq /= max(1.0 - curv * n, 0.1)
     dz_dn = tb if lo <= yr <= hi else 0.0
-    # following a banked curve: N = m (g - v^2 kappa_n dz/dn) cos(slope) (the car's path
-    # curves with the road; a plane or a straight bank adds nothing)
-    st[i, S_BANKLOAD] = -curv / max(1.0 - curv * n, 0.1) * dz_dn
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
     st[i, S_ROADZ] = z
@@ -426,11 +423,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         inv_norm = 1.0 / math.sqrt(1.0 + gx * gx + gy * gy)
         m = mass_dry + fuel
 
-        # --- loads (spec 5.2 step 4): normal force (slope, banked curve), quasi-static transfer
-        # from the previous step, downforce with the ground-effect factor
+        # --- loads (spec 5.2 step 4): normal force (gravity on the road gradient; as in TORCS, no
+        # extra load from following a banked curve), quasi-static transfer from the previous
+        # step, downforce with the ground-effect factor
         ax_kin = ax_s - G * gbx * inv_norm
         ay_kin = ay_s - G * gby * inv_norm
-        normal = m * max(G + st[i, S_BANKLOAD] * (vxg * vxg + vyg * vyg), 0.0) * inv_norm
+        normal = m * G * inv_norm
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
         body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)

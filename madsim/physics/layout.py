@@ -20,7 +20,7 @@ STATE_COLUMNS = _enum(
     "s n piece laps back_crossings lap_start_time cur_lap_time last_lap_time best_lap_time "
     "dist_raced time "
     "fz_fr fz_fl fz_rr fz_rl fric_fr fric_fl fric_rr fric_rl roll_fr roll_fl roll_rr roll_rl "
-    "grad_x grad_y track_heading road_z bank_load"
+    "grad_x grad_y track_heading road_z"
 )
 STATE_DOC = {
     "x": "CG x, global frame, m", "y": "CG y, m",
@@ -50,7 +50,6 @@ STATE_DOC = {
     "grad_x": "road surface gradient dz/dX at the CG (global)", "grad_y": "dz/dY",
     "track_heading": "centre-line tangent heading at the CG's projection, rad",
     "road_z": "road height under the CG, m",
-    "bank_load": "extra normal acceleration per (m/s)^2 of speed from a banked curve, 1/m",
 }
 S = {name: i for i, name in enumerate(STATE_COLUMNS)}
 (S_X, S_Y, S_Z, S_YAW, S_VXG, S_VYG, S_R, S_VX, S_VY, S_AX, S_AY,
@@ -61,7 +60,6 @@ S_FZ = S["fz_fr"]          # 4 wheel loads follow in wheel order
 S_FRIC = S["fric_fr"]      # 4 frictions
 S_ROLL = S["roll_fr"]      # 4 rolling resistances
 S_GX, S_GY, S_THEAD, S_ROADZ = S["grad_x"], S["grad_y"], S["track_heading"], S["road_z"]
-S_BANKLOAD = S["bank_load"]
 N_STATE = len(STATE_COLUMNS)
 
 # --- per-car constants (N, N_CAR) float64, built from CarSpec by `carparams.car_table` ---------
