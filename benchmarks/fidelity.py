@@ -42,6 +42,8 @@ TRACES = Path(os.environ.get("MADSIM_TORCS_TRACES",
 QUICK = ("e-track-2__", "forza__car1-trb1__100", "michigan__car1-trb1__150", "g-track-2__car1-trb1__100",
          "alpine-2__car1-trb1__100")
 COUNTDOWN_MESSAGES = 49
+TRACE_GRID = {"rows": 1, "distance to start": 100.0}
+"""The traces' race file's Starting Grid (a track's own grid overrides it, as wheel-2's does)."""
 GEAR_UP = (5000, 6000, 6000, 6500, 7000)          # rpm x10 units, from gear 1..5
 GEAR_DOWN = (0, 2500, 3000, 3000, 3500, 3500)     # from gear 1..6
 STRAIGHT_STOP_S = 16.0
@@ -65,14 +67,16 @@ class Run:
     seconds: float = 0.0
 
 
-def read_trace(path: Path) -> dict:
-    """The trace's racing messages (countdown dropped) as arrays by column name."""
+def read_trace(path: Path) -> tuple[dict, dict]:
+    """(the trace's racing messages (countdown dropped) as arrays by column name, its first
+    message as a dict)."""
     with gzip.open(path, "rt", newline="") as f:
         rows = list(csv.reader(f))
     head = rows[0]
     idx = [head.index(c) for c in COLUMNS]
     data = np.array([[float(r[k]) for k in idx] for r in rows[1 + COUNTDOWN_MESSAGES:]])
-    return {c: data[:, j] for j, c in enumerate(COLUMNS)}
+    first = {c: float(rows[1][head.index(c)]) for c in COLUMNS}
+    return {c: data[:, j] for j, c in enumerate(COLUMNS)}, first
 
 
 def up_speeds_kmh(car) -> list[float]:
@@ -110,7 +114,7 @@ def replay(path: Path, schedule: str = "torcs") -> Run:
     t0 = time.perf_counter()
     track_name, car_name, mode = path.name.removesuffix(".csv.gz").split("__")
     run = Run(path.name.removesuffix(".csv.gz"), track_name, car_name, mode)
-    run.torcs = read_trace(path)
+    run.torcs, first = read_trace(path)
     lt = run.torcs["lastLapTime"]
     laps_done = np.count_nonzero(np.diff(lt) != 0) + (lt[0] != 0)
     run.torcs_lap2 = float(lt[-1]) if laps_done >= 2 else math.nan
@@ -119,8 +123,12 @@ def replay(path: Path, schedule: str = "torcs") -> Run:
     limit_s = 84.5 + track.length / 10.0
     run.torcs_end = "16 s" if mode == "full" else ("2 laps" if laps_done >= 2 else "DNF")
     world = World(track, [car], np.random.default_rng(0), fuel=True, damage=True)
-    world.reset(np.array([[track.length - 100.0, 0.0, 0.0]]), gears=0)
+    world.reset(grid=TRACE_GRID)
     suite = SensorSuite(world)
+    f = suite.frame()
+    if abs(f.distFromStart[0] - first["distFromStart"]) > 0.05 or abs(f.trackPos[0] - first["trackPos"]) > 0.01:
+        print(f"{run.name}: start differs from TORCS's: distFromStart {f.distFromStart[0]:.2f} vs "
+              f"{first['distFromStart']:.2f}, trackPos {f.trackPos[0]:.3f} vs {first['trackPos']:.3f}", file=sys.stderr)
     u = np.zeros((1, 5))
     for _ in range(COUNTDOWN_MESSAGES):      # TORCS holds the car; the engine revs in neutral
         f = suite.frame()

@@ -183,12 +183,13 @@ def cmd_config_show(args) -> int:
 
 
 def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fuel: bool = False,
-                       damage: bool = True):
-    """A function seed -> World on the starting grid (cars repeat the last name if short)."""
+                       damage: bool = True, grid: dict | None = None):
+    """A function seed -> World on the starting grid (cars repeat the last name if short);
+    `grid`: the race's Starting Grid values (`World.reset(grid=...)`)."""
     import numpy as np
 
     from madsim.cars import load_car
-    from madsim.physics.world import World
+    from madsim.physics.world import World, check_grid
     from madsim.tracks import load_track
 
     track = load_track(track_name)
@@ -197,9 +198,26 @@ def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fu
 
     def make(seed: int):
         world = World(track, specs[:n_cars], np.random.default_rng(seed), fuel=fuel, damage=damage)
-        world.reset()
+        world.reset(grid=grid)
         return world
+    check_grid(grid)        # a bad grid fails here, before any socket is opened
     return make
+
+
+def parse_grid(text: str | None) -> dict | None:
+    """"rows=1,distance_to_start=100" -> {"rows": 1.0, "distance to start": 100.0}."""
+    if not text:
+        return None
+    out = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip().replace("_", " ")] = float(value)
+        except ValueError:
+            raise CliError(f"--grid: {item!r} is not NAME=NUMBER") from None
+        if not sep:
+            raise CliError(f"--grid: {item!r} is not NAME=NUMBER")
+    return out
 
 
 def cmd_serve(args) -> int:
@@ -208,8 +226,12 @@ def cmd_serve(args) -> int:
     from madsim.net.server import ScrServer, ServerError
 
     cars = [c for c in args.cars.split(",") if c]
-    make = make_world_factory(args.track, cars, args.clients, fuel=not args.nofuel, damage=not args.nodamage)
-    server = ScrServer(make, args.clients, host=args.host, port=args.port, mode=args.mode,
+    try:
+        make = make_world_factory(args.track, cars, args.clients, fuel=not args.nofuel,
+                                  damage=not args.nodamage, grid=parse_grid(args.grid))
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    server = ScrServer(make, args.clients, tick_schedule=args.tick_schedule, host=args.host, port=args.port, mode=args.mode,
                        timeout_ms=args.timeout_ms, noisy=args.noisy, identified_reply=args.identified_reply,
                        seed=args.seed, laps=args.laps, max_ticks=args.max_ticks, countdown_ticks=args.countdown,
                        start_timeout_s=args.start_timeout, client_deadline_s=args.client_deadline,
@@ -315,6 +337,11 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--seed", type=int, default=0)
     sv.add_argument("--max-ticks", type=int, default=None)
     sv.add_argument("--countdown", type=int, default=49, help="frozen ticks before the start (TORCS: 49)")
+    sv.add_argument("--tick-schedule", choices=["fixed", "torcs"], default="fixed",
+                    help="'fixed': every tick 20 ms; 'torcs': TORCS's own 20 or 22 ms driver calls")
+    sv.add_argument("--grid", default=None,
+                    help="the race's Starting Grid, e.g. rows=1,distance_to_start=100 (the track's own "
+                         "grid overrides it, as in TORCS); default quickrace's: 2 rows, 25 m")
     sv.add_argument("--start-timeout", type=float, default=None, help="give up if clients do not come (s)")
     sv.add_argument("--client-deadline", type=float, default=5.0,
                     help="sync mode: seconds of silence before a client is treated as in timeout mode")

@@ -32,6 +32,7 @@ from typing import Callable
 import numpy as np
 
 from madsim.net import protocol as P
+from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import FOCUS_NONE, SENSOR_OFFSETS, SensorSuite
 
 TICK_S = 0.02
@@ -82,7 +83,9 @@ class ScrServer:
     `make_world(seed)` builds a fresh World (called before the clients identify, at start and
     after every restart, so a restarted race with the same seed is bit-identical). `ports`
     (optional, one per car) replaces the default port+i, e.g. for a TORCS race file whose
-    scr_server indices have gaps. Sensor noise (`noisy`) draws from default_rng([seed, 1]).
+    scr_server indices have gaps. `tick_schedule`: "fixed" (every tick 0.02 s, the default) or
+    "torcs" (TORCS's own driver calls, 0.02 or 0.022 s apart, `madsim.physics.schedule`).
+    Sensor noise (`noisy`) draws from default_rng([seed, 1]).
     """
 
     def __init__(self, make_world: Callable[[int], object], n_clients: int, *, host: str = "127.0.0.1",
@@ -91,7 +94,7 @@ class ScrServer:
                  max_ticks: int | None = None, countdown_ticks: int = COUNTDOWN_TICKS,
                  start_timeout_s: float | None = None, client_deadline_s: float = 5.0,
                  log: Callable[[str], None] | None = None, log_csv: str | os.PathLike | None = None,
-                 pid: int | None = None, ports: list[int] | None = None):
+                 pid: int | None = None, ports: list[int] | None = None, tick_schedule: str = "fixed"):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if identified_reply not in ("plain", "pid"):
@@ -112,6 +115,7 @@ class ScrServer:
         self.laps = laps
         self.max_ticks = max_ticks
         self.countdown_ticks = int(countdown_ticks)
+        self.clock = make_clock(tick_schedule)   # "fixed" 20 ms ticks or TORCS's 20/22 ms calls
         self.start_timeout_s = start_timeout_s
         self.client_deadline_s = float(client_deadline_s)
         self.log = log or (lambda msg: None)
@@ -256,6 +260,7 @@ class ScrServer:
         cars = list(self.cars)              # the cars still in the race
         countdown = self.countdown_ticks
         tick = self._race_ticks = 0
+        self.clock.reset()
         while True:
             if self._stop:
                 for c in self.cars:
@@ -287,7 +292,7 @@ class ScrServer:
             if countdown > 0:
                 countdown -= 1
             else:
-                world.step(self._controls)
+                world.step(self._controls, self.clock.substeps())
                 self.stats.ticks += 1
                 tick += 1
                 self._race_ticks = tick

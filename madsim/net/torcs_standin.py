@@ -17,6 +17,9 @@ It reads TORCS's command line (spec/scr-protocol.md sections 8, 10 and 12) and r
     -nofuel -nodamage -noisy   as TORCS. -nolaptime: accepted; madsim never removes slow cars.
     -p PORT      base port (vtorcs). Else $TORCS_PORT (MADRaS' fork). Else 3001 with -r, 3101
                  without (gym_torcs' vtorcs default).
+    -tick-schedule fixed|torcs   madsim's option (not TORCS's): `torcs` calls the clients on
+                 TORCS's own schedule (0.02 or 0.022 s apart, as real TORCS does, tick for tick);
+                 default `fixed` (every 0.02 s).
     -identified plain|pid   the identification reply; default `pid` (***identified***:<pid>)
                  when $TORCS_PORT is set, as MADRaS' fork answers, else `plain`.
     -T -vision -s -k -d -e -m, -a N -ver YEAR -l DIR -L DIR -D DIR: accepted and ignored
@@ -71,6 +74,7 @@ class Options:
     damage: bool = True
     noisy: bool = False
     identified: str | None = None
+    tick_schedule: str = "fixed"
     notes: list[str] = field(default_factory=list)
 
 
@@ -122,6 +126,10 @@ def parse_args(argv: list[str]) -> Options:
             pass   # madsim never removes a car for a slow lap
         elif a == "-noisy":
             opts.noisy = True
+        elif a == "-tick-schedule":
+            opts.tick_schedule = value()
+            if opts.tick_schedule not in ("fixed", "torcs"):
+                raise StandinError(f"option -tick-schedule: use 'fixed' or 'torcs', got {opts.tick_schedule!r}")
         elif a == "-identified":
             opts.identified = value()
             if opts.identified not in ("plain", "pid"):
@@ -295,7 +303,8 @@ def build(opts: Options, env: dict[str, str], home: Path):
                   mode="timeout" if opts.timeout_us is not None else "sync",
                   timeout_ms=opts.timeout_us / 1000.0 if opts.timeout_us is not None else 10.0,
                   noisy=opts.noisy, laps=plan.laps, countdown_ticks=plan.countdown,
-                  identified_reply=opts.identified or ("pid" if env_port else "plain"))
+                  identified_reply=opts.identified or ("pid" if env_port else "plain"),
+                  tick_schedule=opts.tick_schedule)
     return kwargs, plan, track
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
-from madsim.physics.tables import SKID, car_table, grid_positions, piece_table
+from madsim.physics.tables import QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
 
 DT = 0.002
@@ -152,20 +152,26 @@ class World:
         """True if the contact solver runs (requested and installed)."""
         return self._solver is not None
 
-    def reset(self, placements=None, *, gears=0) -> None:
-        """Put the cars on the starting grid (track spec 7, quickrace values with the track's
-        overrides) or at explicit placements, at rest or with a speed, and clear all counters.
+    def reset(self, placements=None, *, gears=0, grid: dict | None = None) -> None:
+        """Put the cars on the starting grid (track spec 7) or at explicit placements, at rest or
+        with a speed, and clear all counters.
 
         placements: None, or array-like (N, 3) of (s [m], n [m, left +], speed [m/s]); the car
         points along the centre-line tangent. gears: engaged gear per car (int or (N,)), default
         neutral as TORCS; clipped to [-1, top gear].
+        grid: without placements, the race's `Starting Grid` values as a TORCS race file gives
+        them ("rows", "distance to start", "distance between columns", "offset within a column",
+        m), over quickrace's (2, 25, 20, 10); the track's own grid overrides both, as in TORCS.
+        E.g. {"rows": 1, "distance to start": 100} is the real-TORCS traces' start.
         """
         n = self.n_cars
         tr = self.track
         if placements is None:
-            s, off = grid_positions(tr, n)
+            s, off = grid_positions(tr, n, check_grid(grid))
             speed = np.zeros(n)
         else:
+            if grid is not None:
+                raise ValueError("reset: give placements or grid, not both")
             pl = np.asarray(placements, dtype=np.float64)
             if pl.shape != (n, 3):
                 raise ValueError(f"placements must have shape ({n}, 3) = (s, n, speed) per car, got {pl.shape}")
@@ -344,6 +350,23 @@ class World:
     def wheel_load(self) -> np.ndarray:
         """(N, 4) wheel loads, N, wheel order FR, FL, RR, RL."""
         return np.array(self.state[:, L.S_FZ:L.S_FZ + 4])
+
+
+def check_grid(grid: dict | None) -> dict | None:
+    """The grid values, checked: known names, finite numbers, at least one row, no negative distance."""
+    if grid is None:
+        return None
+    out = {}
+    for key, value in dict(grid).items():
+        if key not in QUICKRACE_GRID or key == "initial height":
+            known = ", ".join(k for k in QUICKRACE_GRID if k != "initial height")
+            raise ValueError(f"grid: unknown value {key!r} (known: {known})")
+        if not (isinstance(value, (int, float, np.integer, np.floating)) and math.isfinite(value)):
+            raise ValueError(f"grid: {key!r} must be a finite number, got {value!r}")
+        if value < (1 if key == "rows" else 0):
+            raise ValueError(f"grid: {key!r} must be {'>= 1' if key == 'rows' else '>= 0'}, got {value!r}")
+        out[key] = float(value)
+    return out
 
 
 def _column_property(name: str, doc: str) -> property:

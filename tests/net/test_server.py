@@ -528,3 +528,34 @@ def test_udp_states_equal_in_process_sensors_for_the_same_seed_and_controls(serv
     assert sum(s["focus"][2] > 0 for s in received) >= 4
     assert max(s["speedX"] for s in received) > 50.0
     assert received[-1]["track"][9] > 0
+
+
+def test_torcs_tick_schedule_and_race_grid_replay_a_torcs_race_start(serve):
+    """`--tick-schedule torcs`: states 20 or 22 ms apart exactly as TORCS's driver calls (the 22 ms
+    gaps after racing messages 11 and 23, as in the real-TORCS traces); `--grid`: the traces'
+    start, 100 m before the line on the centre line (one row)."""
+    from madsim.physics.schedule import TorcsClock
+    from madsim.tracks import load_track
+
+    server = serve("--track", TRACK, "--countdown", "0", "--max-ticks", "30", "--tick-schedule", "torcs",
+                   "--grid", "rows=1,distance_to_start=100")
+    seen: list[dict] = []
+    with client(server) as c:
+        c.run(lambda s: seen.append(s) or simple_driver(s), max_steps=100)
+    clock = TorcsClock()
+    expected = [0.0]
+    for _ in range(30):
+        clock.substeps()
+        expected.append(clock.time - 0.018)
+    assert [s["curLapTime"] for s in seen] == pytest.approx(expected, abs=2e-5)
+    gaps = np.round(np.diff([s["curLapTime"] for s in seen]), 3)
+    assert list(np.nonzero(gaps == 0.022)[0]) == [11, 23]
+    assert seen[0]["distFromStart"] == pytest.approx(load_track(TRACK).length - 100.0, abs=1e-3)
+    assert seen[0]["trackPos"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_bad_grid_is_one_line_error(tmp_path):
+    r = subprocess.run(SERVE + ["--track", TRACK, "--grid", "rows=0"], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and "grid: 'rows' must be >= 1" in r.stderr
+    r = subprocess.run(SERVE + ["--track", TRACK, "--grid", "lanes=2"], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and "grid: unknown value 'lanes'" in r.stderr

@@ -284,3 +284,13 @@ def test_gym_torcs_cycle_restart_then_a_new_client_identifies(launch, tmp_path):
         again = second.receive()
     assert again["distRaced"] == 0.0 and again["speedX"] == 0.0
     torcs.wait_line(r"restart requested by the client of car 0", timeout=WAIT_S)
+
+
+def test_tick_schedule_option(tmp_path):
+    home = tmp_path / "home"
+    home.mkdir()
+    kwargs, _, _ = build(["-tick-schedule", "torcs"], home)
+    assert kwargs["tick_schedule"] == "torcs"
+    assert build([], home)[0]["tick_schedule"] == "fixed"
+    with pytest.raises(T.StandinError, match="-tick-schedule"):
+        T.parse_args(["-tick-schedule", "often"])

@@ -106,3 +106,23 @@ def test_make_clock():
     assert isinstance(make_clock("torcs"), TorcsClock)
     with pytest.raises(ValueError, match="tick schedule"):
         make_clock("sometimes")
+
+
+def test_reset_grid_as_a_torcs_race_file_gives_it(road, sedan):
+    w = make(road, [sedan] * 3)
+    w.reset(grid={"rows": 1, "distance to start": 100.0, "distance between columns": 12.0})
+    # one row: every car on the centre line, 100 m + 12 m per place before the line (track spec 7)
+    assert w.s == pytest.approx(road.length - np.array([100.0, 112.0, 124.0]), abs=1e-6)
+    assert w.n == pytest.approx(np.zeros(3), abs=1e-9)
+    w.reset()      # default: quickrace's grid, 25 m and 2 rows
+    assert w.s[0] == pytest.approx(road.length - 25.0, abs=1e-6) and abs(w.n[0]) > 1.0
+
+
+@pytest.mark.parametrize("grid, msg", [({"rows": 0}, "'rows' must be >= 1"), ({"lanes": 2}, "unknown value 'lanes'"),
+                                       ({"distance to start": math.nan}, "finite number")])
+def test_reset_grid_rejects_bad_values(road, sedan, grid, msg):
+    w = make(road, [sedan])
+    with pytest.raises(ValueError, match=msg):
+        w.reset(grid=grid)
+    with pytest.raises(ValueError, match="not both"):
+        w.reset(np.zeros((1, 3)), grid={"rows": 1})
