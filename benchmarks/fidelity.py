@@ -103,8 +103,9 @@ def controls(sense, prev_gear: int, mode: str, target_kmh: float, up_kmh: list[f
     return steer, accel, brake, gear
 
 
-def replay(path: Path, schedule: str = "torcs") -> Run:
-    """Drive madsim like the trace's TORCS run and record both."""
+def replay(path: Path, schedule: str = "torcs", until_s: float | None = None) -> Run:
+    """Drive madsim like the trace's TORCS run and record both (up to race time `until_s` if
+    given: both records are cut there)."""
     from madsim.cars import load_car
     from madsim.physics.schedule import FIRST_MESSAGE_TIME, make_clock
     from madsim.physics.sensors import SensorSuite
@@ -151,6 +152,9 @@ def replay(path: Path, schedule: str = "torcs") -> Run:
                 f.trackPos[0], f.z[0], *f.wheelSpinVel[0], f.rpm[0], f.gear[0])
         for c, v in zip(COLUMNS, vals):
             rec[c].append(float(v))
+        if until_s is not None and race_t >= until_s:
+            run.madsim_end = f"{until_s:g} s"
+            break
         if mode == "full" and race_t >= STRAIGHT_STOP_S:
             run.madsim_end = "16 s"
             break
@@ -166,6 +170,9 @@ def replay(path: Path, schedule: str = "torcs") -> Run:
         u[0] = (steer, accel, brake, gear, 0.0)
         world.step(u, clock.substeps())
     run.madsim = {c: np.array(v) for c, v in rec.items()}
+    if until_s is not None:
+        keep = np.arange(run.torcs["curLapTime"].shape[0]) < run.madsim["curLapTime"].shape[0]
+        run.torcs = {c: v[keep] for c, v in run.torcs.items()}
     run.seconds = time.perf_counter() - t0
     return run
 

@@ -27,7 +27,7 @@ import numba
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
-    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
+    C_IFREE_F, C_IFREE_R, C_VISC, C_VISC_MAX, C_REACT, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
     C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_RIDE0,
     C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_W0, C_WFR, C_WINGDOWN_F,
     C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST, FLAG_START, P_A0, P_ARC, P_B0, P_B1,
@@ -336,7 +336,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     rad_f, rad_r = cp[i, C_RAD], cp[i, C_RAD + 2]
     skid = cp[i, C_SKID]
     bf, cf, ef, br, cr, er = cp[i, C_BF], cp[i, C_CF], cp[i, C_EF], cp[i, C_BR], cp[i, C_CR], cp[i, C_ER]
-    share = cp[i, C_FSHARE]
+    share_min = share = cp[i, C_FSHARE]
+    visc, share_span = cp[i, C_VISC], cp[i, C_VISC_MAX] - share_min
+    viscous = visc > 0.0
+    react = cp[i, C_REACT]
     driven_f, driven_r = cp[i, C_DRIVEN_F] > 0.0, cp[i, C_DRIVEN_R] > 0.0
     limiter, maxi, tick, ieng = cp[i, C_LIMIT], cp[i, C_MAXI], cp[i, C_TICK], cp[i, C_IENG]
     ebrake, inv_span = cp[i, C_EBRAKE], 1.0 / (cp[i, C_MAXI] - cp[i, C_TICK])
@@ -466,6 +469,16 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         ft_f, fn_f, dft_f = _tyre(vx, vy + a * r, cd, sd, wf * rad_f, bf, cf, ef, skid)
         ft_r, fn_r, dft_r = _tyre(vx, vy - b * r, 1.0, 0.0, wr * rad_r, br, cr, er, skid)
 
+        # --- 4WD centre viscous coupler (spec 4.10, TORCS's rule): the front axle gets the min
+        # torque bias while it turns at least as fast as the rear, more as it falls behind
+        if viscous:
+            if wf == 0.0 and wr == 0.0:
+                share = 0.5
+            elif wf >= wr:
+                share = share_min
+            else:
+                share = share_min + (1.0 - math.exp(-visc * (wr - wf))) * share_span
+
         # --- wheel spin (spec 4.10 inertias; implicit step; brakes stop but never reverse)
         if coupled:
             i_f = cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F]
@@ -478,10 +491,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)
         dvx = (ax_kin + r * vy) * dt
         dvt_f = dvx * cd + (ay_kin - r * vx) * dt * sd
-        ieff_f = i_f + dt * k_f * dft_f * rad_f * rad_f
-        ieff_r = i_r + dt * k_r * dft_r * rad_r * rad_r
-        wf += dt * (t_drive * share - k_f * rad_f * (ft_f - dft_f * dvt_f)) / ieff_f
-        wr += dt * (t_drive * (1.0 - share) - k_r * rad_r * (ft_r - dft_r * dvx)) / ieff_r
+        ieff_f = i_f + dt * react * k_f * dft_f * rad_f * rad_f
+        ieff_r = i_r + dt * react * k_r * dft_r * rad_r * rad_r
+        wf += dt * (t_drive * share - react * k_f * rad_f * (ft_f - dft_f * dvt_f)) / ieff_f
+        wr += dt * (t_drive * (1.0 - share) - react * k_r * rad_r * (ft_r - dft_r * dvx)) / ieff_r
         dwb = dt * tb_f / ieff_f
         wf = max(wf - dwb, 0.0) if wf > 0.0 else min(wf + dwb, 0.0)
         dwb = dt * tb_r / ieff_r

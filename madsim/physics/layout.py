@@ -69,6 +69,7 @@ CAR_COLUMNS = _enum(
     "skid mf_bf mf_cf mf_ef mf_br mf_cr mf_er "
     "tickover limiter revs_maxi eng_inertia eng_brake fuel_cons n_curve "
     "top_gear shift_time drive_front_share driven_f driven_r i_free_f i_free_r "
+    "viscous_max_share viscosity reaction_factor "
     "steer_lock steer_speed brake_front brake_pmax "
     "scx2 clift_f clift_r wing_drag wing_down_f wing_down_r "
     "half_length half_width reach"
@@ -95,6 +96,7 @@ N_CAR = C_IDRIVE_R + MAX_GEAR_SLOTS
  C_SKID, C_BF, C_CF, C_EF, C_BR, C_CR, C_ER,
  C_TICK, C_LIMIT, C_MAXI, C_IENG, C_EBRAKE, C_FUELCONS, C_NCURVE,
  C_TOP, C_SHIFT, C_FSHARE, C_DRIVEN_F, C_DRIVEN_R, C_IFREE_F, C_IFREE_R,
+ C_VISC_MAX, C_VISC, C_REACT,
  C_LOCK, C_STEERSPD, C_BRAKE_FRONT, C_PMAX,
  C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
  C_HALF_LEN, C_HALF_WID, C_REACH) = range(_n)

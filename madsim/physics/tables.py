@@ -57,6 +57,15 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_NCURVE] = len(c.engine_speeds_rad_s)
     row[L.C_TOP], row[L.C_SHIFT] = c.top_gear, c.shift_time
     row[L.C_FSHARE] = c.front_torque_share
+    # TORCS's 4WD chain feeds each axle's tyre torque back twice: to the centre differential
+    # (divided by its ratio) and again to the axle differential, so the wheels feel it
+    # (1 + 1 / centre ratio) times (spec 4.10); one or two-wheel drive feels it once
+    row[L.C_REACT] = 1.0 + 1.0 / c.final_drive if c.drive_type == "4WD" else 1.0
+    if c.drive_type == "4WD" and c.differential_types[2] == "VISCOUS COUPLER":
+        # the centre viscous coupler (spec 4.10): front share from min to max torque bias as the
+        # front axle falls behind the rear; viscosity 0 keeps the min bias
+        row[L.C_VISC_MAX] = max(c.central_max_torque_bias, c.central_min_torque_bias)
+        row[L.C_VISC] = max(c.central_viscosity, 0.0)
     driven = c.driven_wheels
     row[L.C_DRIVEN_F], row[L.C_DRIVEN_R] = float(driven[0]), float(driven[2])
     wheel_i = c.wheel_inertia + np.repeat(c.axle_inertia, 2) / 2.0   # I_free per wheel (spec 4.10)

@@ -49,10 +49,14 @@ def test_coast_down_is_drag_plus_rolling_resistance(straight, ph):
 
 
 def _top_speed(car, gear):
-    """Speed (m/s) where full-throttle drive force equals drag + rolling resistance in `gear`."""
+    """Speed (m/s) where full-throttle drive force equals drag + rolling resistance in `gear`.
+    4WD: TORCS's drive chain feeds the tyre torque back to the centre differential (divided by
+    its ratio) and again to the axle one, so the tyres pass on drive / (1 + 1 / centre ratio)
+    (issue 12; the 155-DTM's real-TORCS straight-line trace agrees to 1 km/h RMS)."""
     ratio, radius = car.overall_ratio(gear), car.driven_wheel_radius
     v = np.linspace(1.0, car.redline_speed(gear), 200001)
-    drive = car.torque_at(v * ratio / radius) * ratio / radius
+    react = 1.0 + 1.0 / car.final_drive if car.drive_type == "4WD" else 1.0
+    drive = car.torque_at(v * ratio / radius) * ratio / radius / react
     resist = car.scx2 * v * v + ROLL * car.mass_total * G
     short = drive < resist
     return float(v[np.argmax(short)]) if short.any() else float(v[-1])   # else: red line binds
