@@ -28,7 +28,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
     C_IFREE_F, C_IFREE_R, C_VISC, C_VISC_MAX, C_REACT, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
-    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_RIDE0,
+    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_RIDE0, C_RIDEMAX, C_RIDEMIN,
     C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_W0, C_WFR, C_WINGDOWN_F,
     C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST, FLAG_START, P_A0, P_ARC, P_B0, P_B1,
     P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV, P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND,
@@ -202,6 +202,20 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
+def ride_at_cg(st, i, cp):
+    """Ride height under the CG, m: each wheel's static ride height lowered by its load above
+    the static one over its wheel rate (spring x bellcrank^2), between the packers and the
+    suspension course (TORCS's suspension at rest under that load, spec 4.8), interpolated
+    from the axles to the CG."""
+    r = 0.0
+    for k in range(4):
+        rk = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / cp[i, C_KSPR + k]
+        rk = min(max(rk, cp[i, C_RIDEMIN + k]), cp[i, C_RIDEMAX + k])
+        r += rk * (cp[i, C_B] if k < 2 else cp[i, C_A])
+    return 0.5 * r / cp[i, C_L]
+
+
+@numba.njit(inline="always", **_JIT)
 def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
     piece, and store s, n, piece, track heading, road z, the road gradient at the CG, the surface
@@ -238,7 +252,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
     st[i, S_ROADZ] = z
-    st[i, S_Z] = z + cp[i, C_H]
+    st[i, S_Z] = z + cp[i, C_H] + ride_at_cg(st, i, cp)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
@@ -564,3 +578,4 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER] = gear, shift_t, d
     st[i, S_FUEL] = fuel
     st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3] = fz0, fz1, fz2, fz3
+    st[i, S_Z] = st[i, S_ROADZ] + h + ride_at_cg(st, i, cp)

@@ -24,7 +24,7 @@ STATE_COLUMNS = _enum(
 )
 STATE_DOC = {
     "x": "CG x, global frame, m", "y": "CG y, m",
-    "z": "CG height: road height under the CG + GC height, m",
+    "z": "CG height: road height under the CG + GC height + ride height (suspension at rest under the current loads), m",
     "yaw": "heading of the body x axis, rad in [-pi, pi)",
     "vx_g": "global velocity x, m/s", "vy_g": "global velocity y, m/s",
     "yaw_rate": "rad/s, |r| <= 9", "vx": "body-frame longitudinal velocity, m/s",
@@ -88,7 +88,9 @@ C_W0 = _n + 28        # static load (dry mass), N
 C_KSPR = _n + 32      # wheel rate spring x bellcrank^2, N/m
 C_RIDE0 = _n + 36     # static ride height, m
 C_KB = _n + 40        # brake torque per Pa, N m/Pa
-C_RATIO = _n + 44                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
+C_RIDEMIN = _n + 44   # lowest ride height: the packers, m
+C_RIDEMAX = _n + 48   # highest ride height: suspension course / bellcrank, m
+C_RATIO = _n + 52                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
 C_IDRIVE_F = C_RATIO + MAX_GEAR_SLOTS   # driven front-axle inertia per slot, kg m^2
 C_IDRIVE_R = C_IDRIVE_F + MAX_GEAR_SLOTS
 N_CAR = C_IDRIVE_R + MAX_GEAR_SLOTS

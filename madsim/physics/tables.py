@@ -92,6 +92,8 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_W0:L.C_W0 + 4] = c.static_wheel_load
     row[L.C_KSPR:L.C_KSPR + 4] = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
     row[L.C_RIDE0:L.C_RIDE0 + 4] = c.ride_height
+    row[L.C_RIDEMIN:L.C_RIDEMIN + 4] = c.susp_packers
+    row[L.C_RIDEMAX:L.C_RIDEMAX + 4] = np.maximum(c.susp_course / np.maximum(c.susp_bellcrank, 1e-6), c.susp_packers)
     row[L.C_KB:L.C_KB + 4] = c.brake_kb
     # overall ratios and drive inertias per gear slot (slot = gear + 1; slot 1 = neutral)
     share_i = 0.25 if c.drive_type == "4WD" else 0.5

@@ -57,9 +57,11 @@ def test_straight_line_runs(fidelity, name, t100_pct, v10_pct, spin_pct):
     assert abs(r["t100_madsim"] / r["t100_torcs"] - 1.0) * 100 < t100_pct
     assert abs(r["v10_madsim"] / r["v10_torcs"] - 1.0) * 100 < v10_pct
     assert r["spin_err"] < spin_pct            # per wheel, RMS by distance over TORCS's RMS
+    assert r["z_rms"] < 1.0                    # cm (ride height under load; was ~9 cm without it)
 
 
 def test_first_minute_of_a_clean_lap_run(fidelity):
     # forza with car1-trb1 touches nothing: speed and line follow TORCS's closely
     _, r = replay(fidelity, "forza__car1-trb1__100", until_s=60.0)
+    assert r["z_rms"] < 1.0                    # cm, measured 0.04
     assert r["v_rms"] < 1.0 and r["pos_rms"] < 0.01     # measured 0.63 km/h (mostly the launch), 0.004 and r["dmg_madsim"] == 0
