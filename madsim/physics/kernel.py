@@ -252,7 +252,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
     st[i, S_ROADZ] = z
-    st[i, S_Z] = z + cp[i, C_H] + ride_at_cg(st, i, cp)
+    st[i, S_Z] = z + cp[i, C_H]     # + the ride height: added once per call (refresh, advance_car)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
@@ -301,6 +301,7 @@ def refresh(st, cp, pt, surf, tsc, count_laps):
         st[i, S_VX] = st[i, S_VXG] * cy + st[i, S_VYG] * sy
         st[i, S_VY] = st[i, S_VYG] * cy - st[i, S_VXG] * sy
         track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y], cy, sy, count_laps)
+        st[i, S_Z] += ride_at_cg(st, i, cp)
 
 
 @numba.njit(**_JIT)
