@@ -438,15 +438,14 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         gx, gy = st[i, S_GX], st[i, S_GY]
         gbx = gx * cy + gy * sy
         gby = gy * cy - gx * sy
-        inv_norm = 1.0 / math.sqrt(1.0 + gx * gx + gy * gy)
         m = mass_dry + fuel
 
-        # --- loads (spec 5.2 step 4): normal force (gravity on the road gradient; as in TORCS, no
-        # extra load from following a banked curve), quasi-static transfer from the previous
-        # step, downforce with the ground-effect factor
-        ax_kin = ax_s - G * gbx * inv_norm
-        ay_kin = ay_s - G * gby * inv_norm
-        normal = m * G * inv_norm
+        # --- loads (spec 5.2 step 4): TORCS's planar model: the wheels carry the whole weight m g
+        # on any slope or bank (no cos), no extra load from following a banked curve; quasi-static
+        # transfer from the previous step, downforce with the ground-effect factor
+        ax_kin = ax_s - G * gbx
+        ay_kin = ay_s - G * gby
+        normal = m * G
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
         body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)
@@ -549,8 +548,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             drag += wing_drag * vx2
         fx_ng = kf_x * k_f + ft_r * k_r + drag
         fy_ng = fy_f + fy_r
-        fx = fx_ng - m * G * gbx * inv_norm
-        fy = fy_ng - m * G * gby * inv_norm
+        fx = fx_ng - m * G * gbx      # gravity along the road: m g x height difference / distance
+        fy = fy_ng - m * G * gby      # between the wheels (spec 4.11), i.e. the gradient, not sin
         mz = a * fy_f - b * fy_r - kf_x * (k0 * y0 + k1 * y1) - ft_r * (k2 * y2 + k3 * y3)
 
         # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
