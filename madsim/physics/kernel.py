@@ -25,19 +25,20 @@ import math
 import numba
 
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
-    C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
+    C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
-    C_IFREE_F, C_IFREE_R, C_VISC, C_VISC_MAX, C_REACT, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
-    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_RIDE0, C_RIDEMAX, C_RIDEMIN,
-    C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_W0, C_WFR, C_WINGDOWN_F,
-    C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST, FLAG_START, P_A0, P_ARC, P_B0, P_B1,
-    P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV, P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND,
-    P_LEN, P_R, P_S0, P_SA0, P_SAMESURF, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R,
-    P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_X0, P_Y0, P_ZR0, P_ZR1, S_AX, S_AY, S_BACK,
-    S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_FRIC, S_FUEL, S_FZ, S_GEAR, S_GX, S_GY,
-    S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ, S_ROLL, S_S, S_SHIFT, S_STEER,
-    S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_WF, S_WR, S_X, S_Y, S_YAW, S_Z, T_LENGTH,
-    T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
+    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
+    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_REACT, C_RIDE0,
+    C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_VISC,
+    C_VISC_MAX, C_W0, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
+    FLAG_START, P_A0, P_ARC, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV,
+    P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND, P_LEN, P_R, P_S0, P_SA0, P_SAMESURF, P_SSURF_L,
+    P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_X0, P_Y0,
+    P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
+    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ,
+    S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_WF, S_WR,
+    S_X, S_Y, S_YAW, S_Z, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
+    U_GEAR, U_STEER,
 )
 
 G = 9.80665          # m/s^2, as TORCS
@@ -304,6 +305,40 @@ def refresh(st, cp, pt, surf, tsc, count_laps):
         st[i, S_Z] += ride_at_cg(st, i, cp)
 
 
+SLIP_MIN_SPEED = 10.0
+"""m/s: both cars faster than this for a slipstream (TORCS)."""
+SLIP_MAX_DYAW = 0.1396
+"""rad: largest heading difference of two cars for a slipstream (TORCS: 8 degrees)."""
+
+
+@numba.njit(**_JIT)
+def slipstream(st, cp, a, b):
+    """TORCS's slipstream (spec 4.6) for cars a..b-1, from their poses now: the body drag of
+    each is multiplied by drag_factor^2, the smallest over the other cars of
+    1 - exp(-2 d / (Cd_other vx_other)) when this car follows another within 10 deg of its
+    direction of travel, or 1 - 0.15 exp(-8 d / (Cd vx)) when it leads one within 8 deg;
+    both cars above 10 m/s, headings within 8 deg, d = distance between the CGs."""
+    for i in range(a, b):
+        k = 1.0
+        vx = st[i, S_VX]
+        if vx > SLIP_MIN_SPEED:
+            x, y, yaw = st[i, S_X], st[i, S_Y], st[i, S_YAW]
+            heading = math.atan2(st[i, S_VYG], st[i, S_VXG])
+            for j in range(a, b):
+                if j == i or st[j, S_VX] <= SLIP_MIN_SPEED:
+                    continue
+                if abs(_wrap(yaw - st[j, S_YAW])) >= SLIP_MAX_DYAW:
+                    continue
+                dx, dy = x - st[j, S_X], y - st[j, S_Y]
+                off = abs(_wrap(heading - math.atan2(dy, dx)))
+                d = math.sqrt(dx * dx + dy * dy)
+                if off > math.pi - 0.1745:           # the other car is ahead: in its wake
+                    k = min(k, 1.0 - math.exp(-2.0 * d / (cp[j, C_CD] * st[j, S_VX])))
+                elif off < SLIP_MAX_DYAW:             # the other car is behind: less eddy drag
+                    k = min(k, 1.0 - 0.15 * math.exp(-8.0 * d / (cp[i, C_CD] * vx)))
+        st[i, S_DRAGK] = k
+
+
 @numba.njit(**_JIT)
 def check_controls(controls, info):
     """Count non-finite controls: info[0] = count, info[1] = first bad flat index (or -1)."""
@@ -364,7 +399,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     tb_f = (cp[i, C_KB] + cp[i, C_KB + 1]) * p_brake * cp[i, C_BRAKE_FRONT]
     tb_r = (cp[i, C_KB + 2] + cp[i, C_KB + 3]) * p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
     wear = 1.0 + st[i, S_DAMAGE] / 10000.0
-    scx2, wing_drag = cp[i, C_SCX2] * wear, cp[i, C_WINGDRAG] * wear
+    dragk = st[i, S_DRAGK]
+    scx2, wing_drag = cp[i, C_SCX2] * wear * dragk * dragk, cp[i, C_WINGDRAG] * wear
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
     wdown_f, wdown_r = cp[i, C_WINGDOWN_F], cp[i, C_WINGDOWN_R]
     y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]

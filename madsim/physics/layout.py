@@ -20,7 +20,7 @@ STATE_COLUMNS = _enum(
     "s n piece laps back_crossings lap_start_time cur_lap_time last_lap_time best_lap_time "
     "dist_raced time "
     "fz_fr fz_fl fz_rr fz_rl fric_fr fric_fl fric_rr fric_rl roll_fr roll_fl roll_rr roll_rl "
-    "grad_x grad_y track_heading road_z"
+    "grad_x grad_y track_heading road_z drag_factor"
 )
 STATE_DOC = {
     "x": "CG x, global frame, m", "y": "CG y, m",
@@ -50,6 +50,7 @@ STATE_DOC = {
     "grad_x": "road surface gradient dz/dX at the CG (global)", "grad_y": "dz/dY",
     "track_heading": "centre-line tangent heading at the CG's projection, rad",
     "road_z": "road height under the CG, m",
+    "drag_factor": "slipstream factor on the body drag's airspeed (1: free air), set once per tick",
 }
 S = {name: i for i, name in enumerate(STATE_COLUMNS)}
 (S_X, S_Y, S_Z, S_YAW, S_VXG, S_VYG, S_R, S_VX, S_VY, S_AX, S_AY,
@@ -60,6 +61,7 @@ S_FZ = S["fz_fr"]          # 4 wheel loads follow in wheel order
 S_FRIC = S["fric_fr"]      # 4 frictions
 S_ROLL = S["roll_fr"]      # 4 rolling resistances
 S_GX, S_GY, S_THEAD, S_ROADZ = S["grad_x"], S["grad_y"], S["track_heading"], S["road_z"]
+S_DRAGK = S["drag_factor"]
 N_STATE = len(STATE_COLUMNS)
 
 # --- per-car constants (N, N_CAR) float64, built from CarSpec by `carparams.car_table` ---------
@@ -69,7 +71,7 @@ CAR_COLUMNS = _enum(
     "skid mf_bf mf_cf mf_ef mf_br mf_cr mf_er "
     "tickover limiter revs_maxi eng_inertia eng_brake fuel_cons n_curve "
     "top_gear shift_time drive_front_share driven_f driven_r i_free_f i_free_r "
-    "viscous_max_share viscosity reaction_factor "
+    "viscous_max_share viscosity reaction_factor drag_coef "
     "steer_lock steer_speed brake_front brake_pmax "
     "scx2 clift_f clift_r wing_drag wing_down_f wing_down_r "
     "half_length half_width reach"
@@ -98,7 +100,7 @@ N_CAR = C_IDRIVE_R + MAX_GEAR_SLOTS
  C_SKID, C_BF, C_CF, C_EF, C_BR, C_CR, C_ER,
  C_TICK, C_LIMIT, C_MAXI, C_IENG, C_EBRAKE, C_FUELCONS, C_NCURVE,
  C_TOP, C_SHIFT, C_FSHARE, C_DRIVEN_F, C_DRIVEN_R, C_IFREE_F, C_IFREE_R,
- C_VISC_MAX, C_VISC, C_REACT,
+ C_VISC_MAX, C_VISC, C_REACT, C_CD,
  C_LOCK, C_STEERSPD, C_BRAKE_FRONT, C_PMAX,
  C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
  C_HALF_LEN, C_HALF_WID, C_REACH) = range(_n)

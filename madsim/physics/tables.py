@@ -74,6 +74,8 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_LOCK], row[L.C_STEERSPD] = c.steer_lock, c.max_steer_speed
     row[L.C_BRAKE_FRONT], row[L.C_PMAX] = c.brake_front_share, c.brake_max_pressure
     row[L.C_SCX2] = c.scx2
+    # TORCS's drag coefficient for the slipstream (spec 4.6): SCx2 + the rear wing's drag
+    row[L.C_CD] = c.scx2 - float(c.wing_kx[1] * np.sin(c.wing_angle[1]))
     row[L.C_CLIFT_F], row[L.C_CLIFT_R] = c.clift
     sin_aoa = np.sin(c.wing_angle)
     row[L.C_WINGDRAG] = float(np.sum(c.wing_kx * sin_aoa))            # < 0: drag

@@ -228,6 +228,7 @@ class World:
         st[rows, :] = 0.0
         st[np.ix_(rows, keep)] = kept
         st[rows, L.S_X], st[rows, L.S_Y], st[rows, L.S_YAW] = x, y, yaw
+        st[rows, L.S_DRAGK] = 1.0
         st[rows, L.S_VXG], st[rows, L.S_VYG] = speed * np.cos(yaw), speed * np.sin(yaw)
         st[rows, L.S_WF] = speed / cp[rows, L.C_RAD]
         st[rows, L.S_WR] = speed / cp[rows, L.C_RAD + 2]
@@ -271,6 +272,8 @@ class World:
             self.nan_count += bad.sum(axis=1)
             u[bad] = 0.0
         st = self.state
+        if self.n_cars > 1:      # slipstream: from the poses at the start of the tick
+            kernel.slipstream(st, self._cp, 0, self.n_cars)
         if self._solver is None:
             self._advance(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
                           u, nsub, DT, self.fuel_on)
