@@ -63,6 +63,7 @@ def _kernels(broad_phase, parallel: bool):
         return _KERNELS[key]
     advance_car = kernel.advance_car
     slipstream = kernel.slipstream
+    t_length = L.T_LENGTH
     rng_ = numba.prange if parallel else range
     s_piece, s_x, s_y, s_yaw = L.S_PIECE, L.S_X, L.S_Y, L.S_YAW
     s_laps, s_dist = L.S_LAPS, L.S_DIST
@@ -82,7 +83,7 @@ def _kernels(broad_phase, parallel: bool):
             if k == 0:
                 hits[a:b] = False
                 if b - a > 1:      # World.step: slipstream from the poses at the tick's start
-                    slipstream(st, cp, a, b)
+                    slipstream(st, cp, a, b, tsc[t_length])
             if not with_contact:
                 for i in range(a, b):
                     advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, nsub, dt, fuel_on)

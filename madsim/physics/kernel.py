@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
@@ -311,31 +312,86 @@ SLIP_MAX_DYAW = 0.1396
 """rad: largest heading difference of two cars for a slipstream (TORCS: 8 degrees)."""
 
 
+SLIP_CUT = 8.1
+"""A wake acts up to SLIP_CUT x Cd x vx metres: beyond, its factor differs from 1 by < 1e-7."""
+SLIP_CHORD = 0.25
+"""Assumed lower bound of (distance between two cars) / (their distance along the track)."""
+SLIP_ALL_PAIRS = 16
+"""Up to this many cars every pair is checked; more are sorted along the track first."""
+
+
+SLIP_COS_WAKE = math.cos(math.pi - 0.1745)
+"""The other car is ahead (in its wake) when it lies within 10 deg of this car's direction of
+travel: cos(angle between that direction and the line from the other car to this one) below
+this (TORCS: |angle| > 2.9671 rad)."""
+SLIP_COS_AHEAD = math.cos(0.1396)
+"""The other car is just behind when it lies within 8 deg of the backward direction."""
+
+
+@numba.njit(inline="always", **_JIT)
+def _slip_pair(st, cp, i, j, x, y, yaw, hx, hy, vx, k):
+    """Car i's slipstream factor k, lowered by car j if it qualifies; (hx, hy) = car i's unit
+    direction of travel."""
+    if st[j, S_VX] <= SLIP_MIN_SPEED or abs(_wrap(yaw - st[j, S_YAW])) >= SLIP_MAX_DYAW:
+        return k
+    dx, dy = x - st[j, S_X], y - st[j, S_Y]
+    d = math.sqrt(dx * dx + dy * dy)
+    c = (dx * hx + dy * hy) / d if d > 0.0 else 1.0
+    if c < SLIP_COS_WAKE:               # the other car is ahead: in its wake
+        k = min(k, 1.0 - math.exp(-2.0 * d / (cp[j, C_CD] * st[j, S_VX])))
+    elif c > SLIP_COS_AHEAD:            # the other car is just behind: less eddy drag
+        k = min(k, 1.0 - 0.15 * math.exp(-8.0 * d / (cp[i, C_CD] * vx)))
+    return k
+
+
 @numba.njit(**_JIT)
-def slipstream(st, cp, a, b):
-    """TORCS's slipstream (spec 4.6) for cars a..b-1, from their poses now: the body drag of
-    each is multiplied by drag_factor^2, the smallest over the other cars of
-    1 - exp(-2 d / (Cd_other vx_other)) when this car follows another within 10 deg of its
-    direction of travel, or 1 - 0.15 exp(-8 d / (Cd vx)) when it leads one within 8 deg;
-    both cars above 10 m/s, headings within 8 deg, d = distance between the CGs."""
+def slipstream(st, cp, a, b, length):
+    """TORCS's slipstream (spec 4.6) for cars a..b-1 on a track of `length` m, from their poses
+    now: the body drag of each is multiplied by drag_factor^2, the smallest over the other cars
+    of 1 - exp(-2 d / (Cd_other vx_other)) when this car follows another within 10 deg of its
+    direction of travel, or 1 - 0.15 exp(-8 d / (Cd vx)) when it leads one within 8 deg; both
+    cars above 10 m/s, headings within 8 deg, d = distance between the CGs. With many cars the
+    others are visited in order of distance along the track, up to where no farther car could
+    lower the factor, taking two cars' distance as at least SLIP_CHORD x their distance along
+    the track (always so unless a car has spun round in a hairpin)."""
+    n = b - a
+    cdv_max = 0.0
     for i in range(a, b):
-        k = 1.0
+        st[i, S_DRAGK] = 1.0
+        if st[i, S_VX] > SLIP_MIN_SPEED:
+            cdv_max = max(cdv_max, cp[i, C_CD] * st[i, S_VX])
+    if n < 2 or cdv_max == 0.0:
+        return
+    reach = SLIP_CUT * cdv_max / SLIP_CHORD
+    order = np.argsort(st[a:b, S_S]) if n > SLIP_ALL_PAIRS else np.arange(n)
+    s_sorted = st[a:b, S_S][order]
+    for p in range(n):
+        i = a + order[p]
         vx = st[i, S_VX]
-        if vx > SLIP_MIN_SPEED:
-            x, y, yaw = st[i, S_X], st[i, S_Y], st[i, S_YAW]
-            heading = math.atan2(st[i, S_VYG], st[i, S_VXG])
+        if vx <= SLIP_MIN_SPEED:
+            continue
+        x, y, yaw = st[i, S_X], st[i, S_Y], st[i, S_YAW]
+        vg = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
+        hx, hy = st[i, S_VXG] / vg, st[i, S_VYG] / vg
+        cdv = cp[i, C_CD] * vx
+        k = 1.0
+        if n <= SLIP_ALL_PAIRS:
             for j in range(a, b):
-                if j == i or st[j, S_VX] <= SLIP_MIN_SPEED:
-                    continue
-                if abs(_wrap(yaw - st[j, S_YAW])) >= SLIP_MAX_DYAW:
-                    continue
-                dx, dy = x - st[j, S_X], y - st[j, S_Y]
-                off = abs(_wrap(heading - math.atan2(dy, dx)))
-                d = math.sqrt(dx * dx + dy * dy)
-                if off > math.pi - 0.1745:           # the other car is ahead: in its wake
-                    k = min(k, 1.0 - math.exp(-2.0 * d / (cp[j, C_CD] * st[j, S_VX])))
-                elif off < SLIP_MAX_DYAW:             # the other car is behind: less eddy drag
-                    k = min(k, 1.0 - 0.15 * math.exp(-8.0 * d / (cp[i, C_CD] * vx)))
+                if j != i:
+                    k = _slip_pair(st, cp, i, j, x, y, yaw, hx, hy, vx, k)
+        else:
+            for step in (1, -1):          # along the track both ways
+                for m in range(1, n):
+                    q = (p + step * m) % n
+                    ds = (s_sorted[q] - s_sorted[p]) * step
+                    if ds < 0.0:
+                        ds += length
+                    # no car this far or farther can lower k: stop (d >= SLIP_CHORD ds)
+                    dmin = SLIP_CHORD * ds
+                    if ds > reach or (k < 1.0 and k <= min(1.0 - math.exp(-2.0 * dmin / cdv_max),
+                                                           1.0 - 0.15 * math.exp(-8.0 * dmin / cdv))):
+                        break
+                    k = _slip_pair(st, cp, i, a + order[q], x, y, yaw, hx, hy, vx, k)
         st[i, S_DRAGK] = k
 
 

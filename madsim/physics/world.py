@@ -273,7 +273,7 @@ class World:
             u[bad] = 0.0
         st = self.state
         if self.n_cars > 1:      # slipstream: from the poses at the start of the tick
-            kernel.slipstream(st, self._cp, 0, self.n_cars)
+            kernel.slipstream(st, self._cp, 0, self.n_cars, self.track.length)
         if self._solver is None:
             self._advance(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
                           u, nsub, DT, self.fuel_on)

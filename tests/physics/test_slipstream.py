@@ -60,3 +60,35 @@ def test_the_follower_coasts_faster(road, sedan):
     for _ in range(50):
         w.step(u)
     assert w.vx[1] > w.vx[0] + 0.05       # less drag in the wake: the gap closes
+
+
+def test_many_cars_sorted_along_the_track_give_the_all_pairs_factors(road, sedan):
+    # 24 cars (> SLIP_ALL_PAIRS: the sorted scan) in two lanes and a few spun or slow ones
+    from madsim.physics import kernel
+    n = 24
+    rng = np.random.default_rng(3)
+    w = World(road, [sedan] * n, np.random.default_rng(0), contact=False)
+    s = np.sort(rng.uniform(0.0, 600.0, n))
+    w.reset(np.column_stack([s, np.where(np.arange(n) % 2, 2.0, -2.0), rng.uniform(5.0, 45.0, n)]), gears=4)
+    st = w.state
+    kernel.slipstream(st, w._cp, 0, n, road.length)
+    c = cd(sedan)
+    ref = np.ones(n)
+    for i in range(n):
+        if st[i, L.S_VX] <= 10.0:
+            continue
+        heading = math.atan2(st[i, L.S_VYG], st[i, L.S_VXG])
+        for j in range(n):
+            if j == i or st[j, L.S_VX] <= 10.0:
+                continue
+            if abs((st[i, L.S_YAW] - st[j, L.S_YAW] + math.pi) % (2 * math.pi) - math.pi) >= 0.1396:
+                continue
+            dx, dy = st[i, L.S_X] - st[j, L.S_X], st[i, L.S_Y] - st[j, L.S_Y]
+            d = math.hypot(dx, dy)
+            off = abs((heading - math.atan2(dy, dx) + math.pi) % (2 * math.pi) - math.pi)
+            if off > 2.9671:
+                ref[i] = min(ref[i], 1.0 - math.exp(-2.0 * d / (c * st[j, L.S_VX])))
+            elif off < 0.1396:
+                ref[i] = min(ref[i], 1.0 - 0.15 * math.exp(-8.0 * d / (c * st[i, L.S_VX])))
+    assert np.any(ref < 0.99)
+    np.testing.assert_allclose(st[:, L.S_DRAGK], ref, rtol=0, atol=1e-12)
