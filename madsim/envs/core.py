@@ -40,6 +40,7 @@ from madsim.agents.dones import DoneSet
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController, TrackSpeedController, speed_gear
 from madsim.agents.rewards import TICK_S, RewardSet
+from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import LocalBackend
 from madsim.envs.config import (
     AgentConfig,
@@ -244,6 +245,7 @@ class MadrasCore:
         self.resets = 0
         self.live: list[str] = []
         self.plan: EpisodePlan | None = None
+        self.fleet = TrafficFleet(0)
         self.stage: _Stage = self._stage(0)
 
     # --- configuration per curriculum stage -----------------------------------------------
@@ -323,11 +325,16 @@ class MadrasCore:
         self.controls = np.zeros((len(plan.cars), 5))
         self.agent_rows = {name: plan.row(name) for name in plan.agents}
         self.behaviours = [self._behaviour(stage, j) for j in range(plan.n_traffic)]
+        if self.fleet.n != len(plan.cars):
+            self.fleet = TrafficFleet(len(plan.cars))
+        self.fleet.clear(slice(None))
         for j, (b, ss) in enumerate(zip(self.behaviours, traffic_ss.spawn(plan.n_traffic))):
             b.reset(np.random.default_rng(ss), {
                 "track_length": track.length, "track_width": track.width, "index": j,
                 "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
                 "placement": (float(where[j, 0]), float(where[j, 1]))})
+            self.fleet.put(j, b)
+        self._traffic_rows = np.arange(plan.n_traffic)
         self.live = list(plan.agents)
         self.tick = 0
         self._init_wait(cfg.server.init_wait * self.ticks_per_step)
@@ -354,20 +361,16 @@ class MadrasCore:
                 k = self.agent_rows[name]
                 self.controls[k, :3] = _STOP
                 self.controls[k, 3] = speed_gear(self.rows[k]["speedX"])
-            self._traffic_controls()
+            self._traffic_controls(self.frame)
             frame = self.backend.step(self.controls)
             if frame is None:
                 raise ConnectionError("the simulator ended the race during init_wait")
             self.frame = frame
             self.rows = [SensorRow(v) for v in frame.flat.tolist()]
 
-    def _traffic_controls(self, rows=None) -> None:
-        """Traffic controls for the coming tick from the latest sensor rows (default self.rows)."""
-        u = self.controls
-        rows = self.rows if rows is None else rows
-        for j, b in enumerate(self.behaviours):
-            steer, accel, brake, gear = b.act(rows[j])
-            u[j, 0], u[j, 1], u[j, 2], u[j, 3] = steer, accel, brake, gear
+    def _traffic_controls(self, frame) -> None:
+        """Traffic controls for the coming tick from the latest sensors (one fleet call)."""
+        self.fleet.act(frame.flat, self.controls, self._traffic_rows)
 
     def _observe(self, name: str, frame, k: int) -> np.ndarray:
         obs = self.builders[name].from_frame(frame, k)
@@ -406,7 +409,7 @@ class MadrasCore:
             for name, drv, k, st in running:
                 drv.fill(u[k], rows[k])
             if self.behaviours:
-                self._traffic_controls(rows)     # this tick's rows, not the step's first
+                self._traffic_controls(frame)    # this tick's sensors, not the step's first
             new = backend.step(u)
             self.tick += 1
             if new is None:                          # the server ended the race

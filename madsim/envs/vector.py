@@ -36,6 +36,7 @@ from madsim.agents.batched import BATCHED, Batched, BatchedTS, speed_gear_many
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
+from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
 from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_config
 from madsim.envs.core import SensorRow, default_traffic_factory, episode_seed
@@ -206,7 +207,8 @@ class MadrasVectorEnv(VectorEnv):
         # per episode
         self._np_random: list = [None] * n         # each episode's gymnasium Env.np_random
         self._action_rng: list = [None] * n
-        self._behaviours: list[list] = [[] for _ in range(n)]
+        self.fleet = TrafficFleet(self.batch.sensors.shape[0])   # traffic rows of the batch
+        self._traffic_rows = np.arange(capacity - 1)               # traffic: rows 0 .. n - 2
         self._behaviour_cache: dict = {}           # (episode, stage, entry) -> behaviour
         self._n_traffic = np.zeros(n, dtype=np.int64)
         self._stage_of = np.zeros(n, dtype=np.int64)
@@ -329,7 +331,8 @@ class MadrasVectorEnv(VectorEnv):
         self._row[e] = self.batch.offsets[e] + k
         self._length[e] = track.length
         self._noise_std[e] = stage.agent.action_noise_std
-        behaviours = []
+        a = int(self.batch.offsets[e])
+        self.fleet.clear(slice(a, a + self.batch.capacity))
         for j, ss in enumerate(traffic_ss.spawn(plan.n_traffic)):
             b = self._behaviour_cache.get((e, stage_i, j))
             if b is None:
@@ -338,9 +341,8 @@ class MadrasVectorEnv(VectorEnv):
                 "track_length": track.length, "track_width": track.width, "index": j,
                 "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
                 "placement": (float(where[j, 0]), float(where[j, 1]))})
-            behaviours.append(b)
-        self._behaviours[e] = behaviours
-        self._n_traffic[e] = len(behaviours)
+            self.fleet.put(a + j, b)
+        self._n_traffic[e] = plan.n_traffic
         return {"seed": plan.seed, "episode": plan.episode, "stage": stage_i,
                 "track": plan.track, "track_length": float(track.length), "cars": plan.cars,
                 "traffic": tuple(t.behaviour for t in plan.traffic),
@@ -348,14 +350,11 @@ class MadrasVectorEnv(VectorEnv):
                 "placement": (float(where[k, 0]), float(where[k, 1]))}
 
     def _traffic_controls(self, slots) -> None:
-        u, flat = self.batch.controls, self.batch.sensors
-        for e in slots.tolist():
-            behaviours = self._behaviours[e]
-            if behaviours:
-                a = int(self.batch.offsets[e])
-                for j, values in enumerate(flat[a:a + len(behaviours)].tolist()):
-                    steer, accel, brake, gear = behaviours[j].act(SensorRow(values))
-                    u[a + j, 0], u[a + j, 1], u[a + j, 2], u[a + j, 3] = steer, accel, brake, gear
+        """Controls of the traffic cars of episodes `slots`, one fleet call."""
+        rows = (self.batch.offsets[slots][:, None] + self._traffic_rows).ravel()
+        rows = rows[self.fleet.kind[rows] != 0]
+        if rows.size:
+            self.fleet.act(self.batch.sensors, self.batch.controls, rows)
 
     def _observe(self, rows: np.ndarray) -> np.ndarray:
         """ObservationBuilder.from_wire over many rows (the same arithmetic, row by row)."""
