@@ -1,32 +1,23 @@
-"""Agent components over many episodes at once, for the batched vector env.
+"""Agent components over many slots at once (episodes of make_vec, agents of one episode).
 
-Each class mirrors one component of `madsim.agents.rewards` / `dones` / `pid` float for float
-(the vector env's tests compare against separate MadrasEnvs bit for bit): per-episode parameters
-are copied from the scalar component built for the episode's curriculum stage, per-episode state
-lives in (n,) arrays indexed by episode slot. Rows are (m, 79) SCR sensor rows in wire order.
+Rewards and dones: `ComponentBatch` evaluates a set of them (the built-ins compiled, see
+`Builtin`); the T-S controller over episodes: `BatchedTS`. Rows are (m, 79) SCR sensor rows in
+wire order, per-slot state lives in arrays indexed by slot.
 """
 
 from __future__ import annotations
 
+import copy
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from madsim.agents import dones as D
-from madsim.agents import rewards as R
+from madsim.agents import component_kernel as ck
 from madsim.agents.pid import SPEED_UNIT_KMH, PIDController
-from madsim.physics.sensors import (
-    O_ANGLE,
-    O_DAMAGE,
-    O_DRACED,
-    O_LASTLAP,
-    O_RACEPOS,
-    O_SX,
-    O_TPOS,
-    O_TRACK,
-)
-
-TICK_S = R.TICK_S
+from madsim.agents.traffic_fleet import WireRow
+from madsim.physics.sensors import N_VALUES, O_ANGLE, O_SX, O_TPOS, SENSOR_OFFSETS
 
 _GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)     # madsim.agents.pid.speed_gear's thresholds
 
@@ -39,212 +30,95 @@ def speed_gear_many(speed_kmh: np.ndarray) -> np.ndarray:
     return gear
 
 
-# --- rewards and dones over many episodes ------------------------------------------------------
-# Each mirrors one component of madsim.agents.rewards / dones, float for float: per-episode
-# parameters are copied from the component object built for the episode's stage, per-episode
-# state lives in (n,) arrays. Call: (slots, prev, cur, length, collision) with prev, cur (m, 79)
-# sensor rows of the learners, length (m,) track lengths m, collision (m,) bool.
+# --- rewards and dones over many slots -----------------------------------------------------------
 
 
-class Batched:
-    params: tuple[str, ...] = ()
+class Builtin:
+    """A built-in reward or done: its formula is compiled (madsim.agents.component_kernel,
+    selected by `code`); the object holds the configured parameters. Calling it with one car's
+    rows (the component API of madsim.agents.rewards) evaluates a batch of one."""
 
-    def __init__(self, n: int):
-        for p in self.params:
-            setattr(self, p, np.zeros(n))
+    code = 0
+    initial_state = (0.0, 0.0, 0.0)
+    _cast = float
 
-    def start(self, e: int, comp, length: float) -> None:
-        for p in self.params:
-            getattr(self, p)[e] = getattr(comp, p)
+    def kernel_params(self, length: float) -> tuple:
+        """The kernel's per-slot parameters for an episode on a track of `length` m."""
+        return ()
+
+    def reset(self) -> None:
+        self._one = None
+
+    def __call__(self, prev: Mapping, cur: Mapping, action: Any, info: Mapping):
+        length = float(info["track_length"])
+        one = getattr(self, "_one", None)
+        if one is None:
+            one = self._one = ComponentBatch([self], 1)
+            one.start(0, [self], length)
+        rows = np.zeros((2, N_VALUES))
+        for k, row in enumerate((prev, cur)):
+            for name, (o, w) in SENSOR_OFFSETS.items():
+                if name in row:
+                    rows[k, o:o + w] = row[name]
+        out = one.evaluate(_SLOT0, rows[:1], rows[1:], np.array([length]),
+                           np.array([bool(info.get("collision", False))]))
+        return self._cast(out[0, 0])
 
 
-class _Progress(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_DRACED] - prev[:, O_DRACED]) / length
+_SLOT0 = np.zeros(1, dtype=np.int64)
 
 
-class _Progress2(Batched):
-    params = ("per_tick",)
+class ComponentBatch:
+    """The components of a reward or done set (built-ins and user-registered Python ones) over
+    n slots (episodes, or the agents of one episode): `start(e, components, length)` at an
+    episode start with the components of e's curriculum stage (same names, same order);
+    `evaluate(slots, prev, cur, length, collision, actions)` -> (components, m) float64 values
+    (dones 1.0 / 0.0) from the rows (m, 79) before and after the tick, length (m,) m and
+    collision (m,) bool. Built-ins take one compiled call; a Python component is one deep copy
+    per slot, called row by row with WireRows (actions: the slots' checked actions, for them)."""
 
-    def __call__(self, slots, prev, cur, length, collision):
-        return np.minimum(1.0, (cur[:, O_DRACED] - prev[:, O_DRACED]) / self.per_tick[slots])
+    def __init__(self, components, n: int):
+        k = len(components)
+        self.codes = np.array([c.code if isinstance(c, Builtin) else 0 for c in components],
+                              dtype=np.int64)
+        self.par = np.zeros((k, n, ck.NPAR))
+        self.state = np.zeros((k, n, ck.NSTATE))
+        self.python = [i for i, code in enumerate(self.codes.tolist()) if code == 0]
+        self.objects = {i: [None] * n for i in self.python}
 
+    def start(self, e: int, components, length: float) -> None:
+        for i, c in enumerate(components):
+            if i in self.objects:
+                obj = copy.deepcopy(c)
+                obj.reset()
+                self.objects[i][e] = obj
+            else:
+                p = c.kernel_params(length)
+                self.par[i, e, :len(p)] = p
+                self.state[i, e] = c.initial_state
 
-class _Progress3(_Progress2):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_DRACED] - prev[:, O_DRACED]) / self.per_tick[slots]
-
-
-class _AvgSpeed(Batched):
-    params = ("target_speed",)
-
-    def __init__(self, n):
-        super().__init__(n)
-        self.ticks = np.zeros(n, dtype=np.int64)
-        self.laps_paid = np.zeros(n, dtype=np.int64)
-
-    def start(self, e, comp, length):
-        super().start(e, comp, length)
-        self.ticks[e] = self.laps_paid[e] = 0
-
-    def __call__(self, slots, prev, cur, length, collision):
-        self.ticks[slots] += 1
-        out = np.zeros(slots.shape[0])
-        pay = ~(cur[:, O_DRACED] < (self.laps_paid[slots] + 1) * length)
-        if pay.any():
-            e = slots[pay]
-            self.laps_paid[e] += 1
-            avg_speed = length[pay] / (self.ticks[e] * TICK_S)
-            self.ticks[e] = 0
-            out[pay] = avg_speed / self.target_speed[e]
+    def evaluate(self, slots, prev, cur, length, collision, actions=None) -> np.ndarray:
+        out = np.zeros((self.codes.shape[0], slots.shape[0]))
+        ck.evaluate(self.codes, self.par, self.state, slots, prev, cur, length, collision, out)
+        for i in self.python:
+            objects = self.objects[i]
+            for j, e in enumerate(slots.tolist()):
+                info = {"track_length": float(length[j]), "collision": bool(collision[j])}
+                out[i, j] = objects[e](WireRow(prev[j]), WireRow(cur[j]),
+                                       None if actions is None else actions[j], info)
         return out
 
 
-def _hit(prev, cur, collision):
-    return collision | (cur[:, O_DAMAGE] > prev[:, O_DAMAGE])
-
-
-class _Collision(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return _hit(prev, cur, collision).astype(np.float64)
-
-
-class _TurnBackward(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (np.cos(cur[:, O_ANGLE]) < 0.0).astype(np.float64)
-
-
-def _wrap(a):
-    return a - 2.0 * math.pi * np.floor((a + math.pi) / (2.0 * math.pi))
-
-
-class _AngularAcceleration(Batched):
-    params = ("reference", "threshold")
-
-    def __init__(self, n):
-        super().__init__(n)
-        self.history = np.zeros((n, 2))
-        self.fresh = np.ones(n, dtype=bool)
-
-    def start(self, e, comp, length):
-        super().start(e, comp, length)
-        self.fresh[e] = True
-
-    def __call__(self, slots, prev, cur, length, collision):
-        fresh = self.fresh[slots]
-        self.history[slots[fresh]] = prev[fresh, O_ANGLE, None]
-        self.fresh[slots] = False
-        a0, a1 = self.history[slots, 0], self.history[slots, 1]
-        a2 = cur[:, O_ANGLE]
-        self.history[slots, 0], self.history[slots, 1] = a1, a2
-        acc = np.abs(_wrap(a2 - a1) - _wrap(a1 - a0))
-        return np.where(acc > self.threshold[slots], acc / self.reference[slots], 0.0)
-
-
-class _SuccessfulOvertake(Batched):
-    def __init__(self, n):
-        super().__init__(n)
-        self.best = np.zeros(n)
-        self.fresh = np.ones(n, dtype=bool)
-
-    def start(self, e, comp, length):
-        self.fresh[e] = True
-
-    def __call__(self, slots, prev, cur, length, collision):
-        fresh = self.fresh[slots]
-        self.best[slots[fresh]] = prev[fresh, O_RACEPOS]
-        self.fresh[slots] = False
-        gained = self.best[slots] - cur[:, O_RACEPOS]
-        up = gained > 0
-        self.best[slots[up]] = cur[up, O_RACEPOS]
-        return np.where(up, gained, 0.0)
-
-
-class _RankOne(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_RACEPOS] == 1.0).astype(np.float64)
-
-
-class _Task(Batched):
-    params = ("position", "bonus")
-
-    def __init__(self, n):
-        super().__init__(n)
-        self.paid = np.zeros(n, dtype=bool)
-
-    def start(self, e, comp, length):
-        super().start(e, comp, length)
-        self.paid[e] = False
-
-    def __call__(self, slots, prev, cur, length, collision):
-        pay = ~(self.paid[slots] | (cur[:, O_RACEPOS] > self.position[slots]))
-        self.paid[slots[pay]] = True
-        return np.where(pay, self.bonus[slots], 0.0)
-
-
-class _RaceOver(Batched):
-    params = ("laps",)
-
-    def __call__(self, slots, prev, cur, length, collision):
-        return cur[:, O_DRACED] >= self.laps[slots] * length
-
-
-class _LapCompleted(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_LASTLAP] > 0.0) & (cur[:, O_LASTLAP] != prev[:, O_LASTLAP])
-
-
-class _TimeOut(Batched):
-    def __init__(self, n):
-        super().__init__(n)
-        self.ticks = np.zeros(n, dtype=np.int64)
-        self.limit = np.zeros(n, dtype=np.int64)
-
-    def start(self, e, comp, length):
-        limit = comp.max_steps
-        if limit is None:
-            limit = math.ceil(length / (comp.target_speed * TICK_S))
-        self.limit[e] = limit
-        self.ticks[e] = 0
-
-    def __call__(self, slots, prev, cur, length, collision):
-        self.ticks[slots] += 1
-        return self.ticks[slots] >= self.limit[slots]
-
-
-class _CollisionDone(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return _hit(prev, cur, collision)
-
-
-class _TurnBackwardDone(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return np.cos(cur[:, O_ANGLE]) < 0.0
-
-
-class _OutOfTrack(Batched):
-    params = ("low", "high")
-
-    def __call__(self, slots, prev, cur, length, collision):
-        pos = cur[:, O_TPOS]
-        return ((pos < self.low[slots]) | (pos > self.high[slots])
-                | (cur[:, O_TRACK:O_TRACK + 19].min(axis=1) < 0.0))
-
-
-class _Rank1(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return cur[:, O_RACEPOS] == 1.0
-
-
-BATCHED = {
-    R.Progress: _Progress, R.Progress2: _Progress2, R.Progress3: _Progress3,
-    R.AvgSpeed: _AvgSpeed, R.Collision: _Collision, R.TurnBackward: _TurnBackward,
-    R.AngularAcceleration: _AngularAcceleration, R.SuccessfulOvertake: _SuccessfulOvertake,
-    R.RankOne: _RankOne, R.Task: _Task,
-    D.RaceOver: _RaceOver, D.LapCompleted: _LapCompleted, D.TimeOut: _TimeOut,
-    D.Collision: _CollisionDone, D.TurnBackward: _TurnBackwardDone, D.OutOfTrack: _OutOfTrack,
-    D.Rank1: _Rank1,
-}
+def weighted_sum(values: np.ndarray, weights) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(total (m,), terms [(m,)]) of reward values (k, m) with signed weights (k,), summed in
+    component order (what every env reports)."""
+    total = np.zeros(values.shape[1])
+    terms = []
+    for w, v in zip(weights, values):
+        term = w * v
+        terms.append(term)
+        total += term
+    return total, terms
 
 
 class BatchedPID:

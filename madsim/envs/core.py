@@ -34,6 +34,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from madsim.agents.batched import ComponentBatch, weighted_sum
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
@@ -57,6 +58,8 @@ __all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
 
 _FIELDS = {name: (o, w, name in INT_FIELDS) for name, (o, w) in SENSOR_OFFSETS.items()}
 _STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
+_SLOT0 = np.zeros(1, dtype=np.int64)
+_HIT, _NO_HIT = np.ones(1, dtype=bool), np.zeros(1, dtype=bool)
 
 
 class SensorRow(Mapping):
@@ -128,17 +131,25 @@ class _Driver:
         self.normalised = agent.action.normalised
         self.manual = agent.gear == "manual"
         self.noise_std = float(agent.action_noise_std)
-        self.rewards = RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed)
-        self.dones = DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
-                                        track_limits=s.track_limits,
-                                        target_speed=agent.target_speed)
+        rewards = RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed).components
+        dones = DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
+                                   track_limits=s.track_limits,
+                                   target_speed=agent.target_speed).components
+        self.reward_names = [name for name, _, _ in rewards]
+        self.weights = [w for _, w, _ in rewards]
+        self.reward_components = [c for _, _, c in rewards]
+        self.rewards = ComponentBatch(self.reward_components, 1)
+        self.done_names = [name for name, _ in dones]
+        self.truncation = [c.truncation for _, c in dones]
+        self.done_components = [c for _, c in dones]
+        self.dones = ComponentBatch(self.done_components, 1)
+        self._length = np.zeros(1)
         self.controller = None
         if self.ts:
             self.controller = TrackSpeedController(
                 PIDController.from_config(agent.pid), target_speed=agent.target_speed,
                 track_limits=s.track_limits, normalised=self.normalised)
         self.ticks = agent.pid.latency if self.ts else 1
-        self.info = {"track_length": 0.0, "collision": False}
         self._sab = _STOP
         self._gear = 1.0
 
@@ -186,13 +197,26 @@ class _Driver:
             u[3] = self._gear
 
     def reset(self, row: SensorRow, track_length: float) -> None:
-        self.rewards.reset()
-        self.dones.reset()
+        self.rewards.start(0, self.reward_components, track_length)
+        self.dones.start(0, self.done_components, track_length)
         if self.controller is not None:
             self.controller.reset(row)
-        self.info["track_length"] = float(track_length)
-        self.info["collision"] = False
+        self._length[0] = track_length
         self._sab = _STOP
+
+    def score(self, prev: np.ndarray, cur: np.ndarray, action: list[float], collision: bool):
+        """(reward, terms by name, terminated, truncated, dones fired) of one tick from the
+        rows (1, 79) before and after it (madsim.agents.batched: the envs' one code path)."""
+        hit = _HIT if collision else _NO_HIT
+        actions = [action]
+        total, terms = weighted_sum(self.rewards.evaluate(_SLOT0, prev, cur, self._length, hit,
+                                                          actions), self.weights)
+        fired = self.dones.evaluate(_SLOT0, prev, cur, self._length, hit, actions)[:, 0]
+        names = tuple(n for n, f in zip(self.done_names, fired.tolist()) if f)
+        term = any(f and not t for f, t in zip(fired.tolist(), self.truncation))
+        trunc = any(f and t for f, t in zip(fired.tolist(), self.truncation))
+        return (float(total[0]), {n: float(v[0]) for n, v in zip(self.reward_names, terms)},
+                term, trunc, names)
 
 
 @dataclasses.dataclass
@@ -417,16 +441,15 @@ class MadrasCore:
                     st[3], st[4], st[5] = True, ("ServerEnded",), frame
                 running = []
                 break
-            frame = new
+            prev_flat, frame = frame.flat, new
             new_rows = [SensorRow(v) for v in frame.flat.tolist()]
             hits = backend.collisions()
             still = []
             for entry in running:
                 name, drv, k, st = entry
-                prev, cur = rows[k], new_rows[k]
-                info = drv.info
-                info["collision"] = bool(hits[k]) if hits is not None else False
-                r, terms = drv.rewards(prev, cur, chosen[name], info)
+                collision = bool(hits[k]) if hits is not None else False
+                r, terms, term, trunc, fired = drv.score(prev_flat[k:k + 1], frame.flat[k:k + 1],
+                                                         chosen[name], collision)
                 st[0] += r
                 if st[1] is None:
                     st[1] = terms
@@ -435,9 +458,8 @@ class MadrasCore:
                     for key, v in terms.items():
                         acc[key] += v
                 st[6] += 1
-                term, trunc, fired = drv.dones(prev, cur, chosen[name], info)
                 if term or trunc:
-                    st[2], st[3], st[4], st[5] = term, trunc, tuple(fired), frame
+                    st[2], st[3], st[4], st[5] = term, trunc, fired, frame
                     u[k, :3] = _STOP
                     u[k, 4] = 0.0
                 else:

@@ -2,14 +2,16 @@
 
 `MadrasVectorEnv` runs N independent copies of a one-learner scenario in one
 `madsim.physics.batch.WorldBatch`: every tick advances all running episodes (and computes their
-sensors) in one compiled call, and the agent side (actions, the T-S PID, observations, rewards,
-dones) is done with numpy over the episodes. Each episode keeps its own track, cars, traffic,
+sensors) in one compiled call, the traffic cars of all episodes are driven by one compiled call
+(madsim.agents.traffic_fleet), the built-in rewards and dones are one compiled call each
+(madsim.agents.batched.ComponentBatch, the same code MadrasEnv runs), and the rest of the
+agent side (actions, the T-S PID, observations) is numpy over the episodes. Each episode keeps its own track, cars, traffic,
 random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
 `MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
 `gymnasium.vector.SyncVectorEnv` over `MadrasEnv`s). What stays in Python, per episode: resets
-(~0.3 ms each), traffic behaviours (one `act` per traffic car and tick), observation noise and
-focus readings, action noise draws, reward/done components registered without a batched form
-here, and contact resolution (only when the broad phase finds something near).
+(~0.3 ms each), observation noise and focus readings, action noise draws, user-defined
+(registered) rewards, dones and traffic targets, and contact resolution (only when the broad
+phase finds something near).
 
 Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
 Speed (benchmarks/bench_vector.py): ~100,000 env-steps/s from N = 64 up on one core of this
@@ -22,7 +24,6 @@ rendering.
 
 from __future__ import annotations
 
-import copy
 from typing import Any, ClassVar
 
 import numpy as np
@@ -32,14 +33,14 @@ from gymnasium.vector.utils import batch_space
 
 from madsim.agents import dones as D
 from madsim.agents import rewards as R
-from madsim.agents.batched import BATCHED, Batched, BatchedTS, speed_gear_many
+from madsim.agents.batched import BatchedTS, ComponentBatch, speed_gear_many, weighted_sum
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
 from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
 from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_config
-from madsim.envs.core import SensorRow, default_traffic_factory, episode_seed
+from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
 from madsim.physics.batch import WorldBatch
 from madsim.physics.sensors import (
@@ -57,34 +58,6 @@ def make_vec(config=None, num_envs: int = 1, **kwargs) -> MadrasVectorEnv:
     scenario stepped as one batch. Keywords: traffic_factory, autoreset_mode ("NextStep",
     "SameStep", "Disabled"), contact, fuel, damage, threads (see `MadrasVectorEnv`)."""
     return MadrasVectorEnv(config, num_envs, **kwargs)
-
-
-class _Scalar(Batched):
-    """A component without a batched form (e.g. one added with register_reward): one copy of
-    the scalar object per episode, called with SensorRows, episode by episode."""
-
-    def __init__(self, n: int, cast):
-        super().__init__(n)
-        self.cast = cast
-        self.objects: list = [None] * n
-        self.actions: list = []         # the step's checked actions of the episodes called
-
-    def start(self, e, comp, length):
-        obj = copy.deepcopy(comp)
-        obj.reset()
-        self.objects[e] = obj
-
-    def __call__(self, slots, prev, cur, length, collision):
-        out = np.zeros(slots.shape[0], dtype=self.cast)
-        for i, (e, p, c) in enumerate(zip(slots.tolist(), prev.tolist(), cur.tolist())):
-            info = {"track_length": float(length[i]), "collision": bool(collision[i])}
-            out[i] = self.cast(self.objects[e](SensorRow(p), SensorRow(c), self.actions[i], info))
-        return out
-
-
-def _batched(comp, n: int, cast) -> Batched:
-    cls = BATCHED.get(type(comp))
-    return _Scalar(n, cast) if cls is None else cls(n)
 
 
 class _Stage:
@@ -191,11 +164,13 @@ class MadrasVectorEnv(VectorEnv):
         if self._factory is None and capacity > 1 and any(c.traffic for c in stage_cfgs):
             self._factory = default_traffic_factory()
         first = self._stages[0]
-        self._rewards = [(name, w, _batched(c, n, float))
-                         for name, w, c in first.rewards.components]
-        self._dones = [(name, c.truncation, _batched(c, n, bool))
-                       for name, c in first.dones.components]
-        self._scalar = any(isinstance(b, _Scalar) for _, _, b in self._rewards + self._dones)
+        self._reward_names = [name for name, _, _ in first.rewards.components]
+        self._weights = [w for _, w, _ in first.rewards.components]
+        self._rewards = ComponentBatch([c for _, _, c in first.rewards.components], n)
+        self._done_names = [name for name, _ in first.dones.components]
+        self._is_trunc = np.array([c.truncation for _, c in first.dones.components], dtype=bool)
+        self._dones = ComponentBatch([c for _, c in first.dones.components], n)
+        self._scalar = bool(self._rewards.python or self._dones.python)
         self._pid = (BatchedTS(PIDController.from_config(agent.pid), limits, self._normalised, n)
                      if self._ts else None)
         needs_focus = "focus" in self.builder.fields
@@ -301,10 +276,8 @@ class MadrasVectorEnv(VectorEnv):
         for e, info in zip(slots.tolist(), started):
             st = self._stages[self._stage_of[e]]
             length = self._length[e]
-            for (_, _, b), (_, _, c) in zip(self._rewards, st.rewards.components):
-                b.start(e, c, length)
-            for (_, _, b), (_, c) in zip(self._dones, st.dones.components):
-                b.start(e, c, length)
+            self._rewards.start(e, [c for _, _, c in st.rewards.components], length)
+            self._dones.start(e, [c for _, c in st.dones.components], length)
             if self._pid is not None:
                 self._pid.reset(e, batch.sensors[self._row[e]], st.agent.target_speed)
             self._sab[e] = _STOP
@@ -437,7 +410,7 @@ class MadrasVectorEnv(VectorEnv):
         terms = None
         ticks = np.zeros(m, dtype=np.int64)
         term, trunc = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
-        fired = np.zeros((m, len(self._dones)), dtype=bool)
+        fired = np.zeros((m, len(self._done_names)), dtype=bool)
         running = np.arange(m)
         mask = np.zeros(self.num_envs, dtype=bool)
         traffic = bool(self._n_traffic[slots].any())
@@ -458,16 +431,9 @@ class MadrasVectorEnv(VectorEnv):
             cur = flat[rows]
             length = self._length[run]
             collision = hits[rows]
-            if self._scalar:
-                for _, _, comp in self._rewards + self._dones:
-                    if isinstance(comp, _Scalar):
-                        comp.actions = [checked[i] for i in running.tolist()]
-            r = np.zeros(run.shape[0])
-            values = []
-            for _, weight, comp in self._rewards:
-                v = weight * comp(run, prev, cur, length, collision)
-                values.append(v)
-                r += v
+            actions = [checked[i] for i in running.tolist()] if self._scalar else None
+            r, values = weighted_sum(self._rewards.evaluate(run, prev, cur, length, collision,
+                                                            actions), self._weights)
             total[running] += r
             if terms is None:
                 terms = values
@@ -475,15 +441,9 @@ class MadrasVectorEnv(VectorEnv):
                 for acc, v in zip(terms, values):
                     acc[running] += v
             ticks[running] += 1
-            d_term = np.zeros(run.shape[0], dtype=bool)
-            d_trunc = np.zeros(run.shape[0], dtype=bool)
-            d_fired = np.empty((run.shape[0], len(self._dones)), dtype=bool)
-            for j, (_, is_trunc, comp) in enumerate(self._dones):
-                d_fired[:, j] = hit = comp(run, prev, cur, length, collision)
-                if is_trunc:
-                    d_trunc |= hit
-                else:
-                    d_term |= hit
+            d_fired = self._dones.evaluate(run, prev, cur, length, collision, actions).T != 0.0
+            d_term = (d_fired & ~self._is_trunc).any(axis=1)
+            d_trunc = (d_fired & self._is_trunc).any(axis=1)
             done = d_term | d_trunc
             if done.any():
                 which = running[done]
@@ -505,14 +465,14 @@ class MadrasVectorEnv(VectorEnv):
         stepped = np.zeros(n, dtype=bool)
         stepped[slots] = True
         reward_terms: dict = {}
-        for (name, _, _), v in zip(self._rewards, terms or [np.zeros(m)] * len(self._rewards)):
+        for name, v in zip(self._reward_names, terms or [np.zeros(m)] * len(self._reward_names)):
             full = np.zeros(n)
             full[slots] = v
             reward_terms[name] = full
             reward_terms["_" + name] = stepped.copy()
         dones = self._dones_template.copy()
         dones[~stepped] = None
-        names = [name for name, _, _ in self._dones]
+        names = self._done_names
         for i in np.flatnonzero(fired.any(axis=1)).tolist():
             dones[slots[i]] = tuple(nm for nm, f in zip(names, fired[i]) if f)
         all_ticks = np.zeros(n, dtype=np.int64)
