@@ -8,24 +8,29 @@ wire order, per-slot state lives in arrays indexed by slot.
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from madsim.agents import component_kernel as ck
-from madsim.agents.pid import SPEED_UNIT_KMH, PIDController
+from madsim.agents.pid import (
+    CTRL_STATE,
+    SPEED_GEAR_KMH,
+    PIDController,
+    desired_lane_speed,
+    observe,
+    ts_act,
+)
 from madsim.agents.traffic_fleet import WireRow
 from madsim.physics.sensors import N_VALUES, O_ANGLE, O_SX, O_TPOS, SENSOR_OFFSETS
 
-_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)     # madsim.agents.pid.speed_gear's thresholds
 
 
 def speed_gear_many(speed_kmh: np.ndarray) -> np.ndarray:
     """madsim.agents.pid.speed_gear over an array (float gears)."""
     gear = np.ones(speed_kmh.shape)
-    for threshold in _GEAR_KMH:
+    for threshold in SPEED_GEAR_KMH:
         gear += speed_kmh > threshold
     return gear
 
@@ -121,93 +126,38 @@ def weighted_sum(values: np.ndarray, weights) -> tuple[np.ndarray, list[np.ndarr
     return total, terms
 
 
-class BatchedPID:
-    """madsim.agents.pid.PID over episodes: integral, previous error, first-call flag."""
-
-    def __init__(self, pid, n: int):
-        self.kp, self.ki, self.kd = pid.kp, pid.ki, pid.kd
-        self.limits, self.kick_free = pid.limits, pid.kick_free
-        self.integral = np.zeros(n)
-        self.prev = np.zeros(n)
-        self.first = np.ones(n, dtype=bool)
-
-    def reset(self, e: int) -> None:
-        self.integral[e] = self.prev[e] = 0.0
-        self.first[e] = True
-
-    def __call__(self, slots, error):
-        prev = self.prev[slots]
-        if self.kick_free:
-            prev = np.where(self.first[slots], error, prev)
-        self.first[slots] = False
-        derivative = error - prev
-        self.prev[slots] = error
-        held = self.integral[slots]
-        integral = held + error
-        out = self.kp * error + self.ki * integral + self.kd * derivative
-        if self.limits is not None:
-            low, high = self.limits
-            hold = ((out > high) & (error > 0.0)) | ((out < low) & (error < 0.0))
-            if hold.any():
-                integral = np.where(hold, held, integral)
-                held_out = self.kp * error + self.ki * integral + self.kd * derivative
-                out = np.where(hold, held_out, out)
-        self.integral[slots] = integral
-        return out
-
-
 class BatchedTS:
-    """madsim.agents.pid.TrackSpeedController (with its PIDController) over episodes."""
+    """madsim.agents.pid.TrackSpeedController over slots: the same compiled controller
+    (pid.ts_act), per-slot state in arrays."""
 
     def __init__(self, pid: PIDController, track_limits, normalised: bool, n: int):
         self.compat = pid.compat
-        self.accel_pid = BatchedPID(pid.accel_pid, n)
-        self.steer_pid = BatchedPID(pid.steer_pid, n)
-        self.accel_scale, self.steer_scale = pid.accel_scale, pid.steer_scale
+        self.params = pid.params.copy()
+        self.state = np.zeros((n, CTRL_STATE))
         self.low, self.high = float(track_limits[0]), float(track_limits[1])
         self.normalised = normalised
         self.target_speed = np.zeros(n)
         self.lane_des, self.speed_des_kmh = np.zeros(n), np.zeros(n)
-        self.prev_lane, self.prev_angle, self.prev_vel = np.zeros(n), np.zeros(n), np.zeros(n)
         self.fresh = np.ones(n, dtype=bool)
 
     def reset(self, e: int, row: np.ndarray, target_speed: float) -> None:
-        self.accel_pid.reset(e)
-        self.steer_pid.reset(e)
-        self.prev_lane[e] = self.prev_angle[e] = self.prev_vel[e] = 0.0
+        """Start slot e's episode from its first sensor row (79,)."""
+        PIDController.initial_state(self.state[e])
         if not self.compat:
-            self._update(np.array([e]), row[None, :])
+            observe(self.state[e], 0, row[O_TPOS], row[O_ANGLE], row[O_SX])
         self.lane_des[e] = self.speed_des_kmh[e] = 0.0
         self.fresh[e] = True
         self.target_speed[e] = target_speed
 
-    def _update(self, slots, rows) -> None:
-        self.prev_lane[slots] = rows[:, O_TPOS]
-        self.prev_angle[slots] = rows[:, O_ANGLE] / math.pi
-        self.prev_vel[slots] = rows[:, O_SX] / SPEED_UNIT_KMH
-
     def set_action(self, slots, action) -> None:
-        a0, a1 = action[:, 0], action[:, 1]
-        if not self.normalised:
-            self.lane_des[slots], self.speed_des_kmh[slots] = a0, a1
-            return
-        span = self.high - self.low
-        lane = self.low + span * a0 if self.compat else self.low + span * (a0 + 1.0) / 2.0
-        self.lane_des[slots] = lane
-        self.speed_des_kmh[slots] = a1 * self.target_speed[slots] * 3.6
+        """Take the T-S actions (m, 2) of slots (m,)."""
+        self.lane_des[slots], self.speed_des_kmh[slots] = desired_lane_speed(
+            action[:, 0], action[:, 1], low=self.low, high=self.high, normalised=self.normalised,
+            compat=self.compat, target_speed=self.target_speed[slots])
 
     def act(self, slots, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(steer, accel, brake) of the coming tick from the latest sensor rows (m, 79)."""
-        update = ~self.fresh[slots] if self.compat else np.ones(slots.shape[0], dtype=bool)
-        self._update(slots[update], rows[update])
-        self.fresh[slots] = False
-        lane_error = self.prev_lane[slots] - self.lane_des[slots]
-        steer_error = self.prev_angle[slots] - lane_error * self.steer_scale
-        speed_error = self.speed_des_kmh[slots] / SPEED_UNIT_KMH - self.prev_vel[slots]
-        accel_error = speed_error * self.accel_scale
-        steer = self.steer_pid(slots, steer_error)
-        accel = self.accel_pid(slots, accel_error)
-        if self.compat:
-            return steer, accel, np.where(accel < 0.0, 1.0, 0.0)
-        return (np.minimum(1.0, np.maximum(-1.0, steer)), np.minimum(1.0, np.maximum(0.0, accel)),
-                np.minimum(1.0, np.maximum(0.0, -accel)))
+        out = np.empty((slots.shape[0], 3))
+        ts_act(self.state, self.params, self.fresh, self.lane_des, self.speed_des_kmh, slots,
+               rows, out)
+        return out[:, 0], out[:, 1], out[:, 2]

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from madsim.agents import traffic_kernel as tk
-from madsim.agents.pid import PIDController
+from madsim.agents.pid import CTRL_PARAMS, CTRL_STATE, PIDController
 from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.physics.sensors import N_VALUES, SENSOR_OFFSETS
 
@@ -150,19 +150,16 @@ class TrafficBehaviour:
         own = self._fleet = self._own
         self._r = 0
         own.S[0] = 0.0
-        own.S[0, [tk.S_FIRST, tk.A_FIRST]] = 1.0
+        PIDController.initial_state(own.S[0, tk.S_PID:tk.S_PID + CTRL_STATE])
         own.S[0, tk.RAND_AT] = tk.RAND_BUF
         own.S[0, tk.TRACK_LENGTH] = float(length) if length else 0.0
         own.S[0, tk.HALF_WIDTH] = float(width) / 2.0 if width else 0.0
-        p, pid = own.P[0], self.pid
+        p = own.P[0]
         p[:] = 0.0
         p[[tk.WINDOW_S, tk.MIN_SAFE, tk.LENGTH, tk.WIDTH, tk.WHEELBASE, tk.REAR_AXLE,
            tk.STEER_LOCK, tk.TICK]] = (self.window_s, self.min_safe_dist, g.length_m, g.width_m,
                                        g.wheelbase_m, g.rear_axle_m, g.steer_lock_rad, self.tick_s)
-        sp, ap = pid.steer_pid, pid.accel_pid
-        p[tk.STEER_KP:tk.STEER_KP + 3] = sp.kp, sp.ki, sp.kd
-        p[tk.ACCEL_KP:tk.ACCEL_KP + 3] = ap.kp, ap.ki, ap.kd
-        p[[tk.ACCEL_SCALE, tk.STEER_SCALE, tk.COMPAT]] = pid.accel_scale, pid.steer_scale, pid.compat
+        self.pid.pack(p[tk.P_PID:tk.P_PID + CTRL_PARAMS])
         info["behaviour"] = self.behaviour_name
         info["params"] = dict(self.params)
         self.setup(rng, info)

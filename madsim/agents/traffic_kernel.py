@@ -26,6 +26,15 @@ import math
 import numpy as np
 from numba import njit
 
+from madsim.agents.pid import (
+    CTRL_PARAMS,
+    CTRL_STATE,
+    SPEED_GEAR_KMH,
+    observe,
+    pid_controls,
+    py_max,
+    py_min,
+)
 from madsim.physics.sensors import O_ANGLE, O_CURLAP, O_DFS, O_DRACED, O_OPP, O_SX, O_TPOS, O_TRACK
 
 # kinds
@@ -34,23 +43,24 @@ K_NONE, K_CONST_VEL, K_SINUSOIDAL, K_LANE_SWITCH, K_STOPPING, K_PARK, K_PARKED, 
 
 # state columns
 (TICKS, STEER, KAPPA, ANGLE_PREV, HAS_ANGLE_PREV, LANE_CMD, HAS_LANE_CMD, DIST0, HAS_DIST0, DFS0,
- DFS_PREV, TRAVELLED, HALF_WIDTH, TRACK_LENGTH, S_INTEGRAL, S_PREV, S_FIRST, A_INTEGRAL, A_PREV,
- A_FIRST, PID_LANE, PID_ANGLE, PID_VEL, LANE, HAS_LANE, WANTED, DRAWS, STAND_S, STANDING, PARKED,
- TO_GO, HAS_TO_GO, RAND_AT, EVENT, EVENT_VALUE, T_S, TARGET_LANE, TARGET_SPEED) = range(38)
-NS = 38
+ DFS_PREV, TRAVELLED, HALF_WIDTH, TRACK_LENGTH) = range(14)
+S_PID = 14                   # the controller's state block (madsim.agents.pid, CTRL_STATE values)
+(LANE, HAS_LANE, WANTED, DRAWS, STAND_S, STANDING, PARKED, TO_GO, HAS_TO_GO, RAND_AT, EVENT,
+ EVENT_VALUE, T_S, TARGET_LANE, TARGET_SPEED) = range(S_PID + CTRL_STATE, S_PID + CTRL_STATE + 15)
+NS = S_PID + CTRL_STATE + 15
 EV_NONE, EV_LANE, EV_STOP, EV_TARGET = 0.0, 1.0, 2.0, 3.0
 
 # parameter columns
-(WINDOW_S, MIN_SAFE, LENGTH, WIDTH, WHEELBASE, REAR_AXLE, STEER_LOCK, TICK, STEER_KP, STEER_KI,
- STEER_KD, ACCEL_KP, ACCEL_KI, ACCEL_KD, ACCEL_SCALE, STEER_SCALE, COMPAT, SPEED, LANE_P, MEAN,
- AMPLITUDE, PERIOD, INTERVAL, N_LANES, STOP_P, MAX_STOP, PARK_LANE, PARK_DISTANCE) = range(28)
-NP = 28
+(WINDOW_S, MIN_SAFE, LENGTH, WIDTH, WHEELBASE, REAR_AXLE, STEER_LOCK, TICK) = range(8)
+P_PID = 8                    # the controller's parameter block (CTRL_PARAMS values)
+(SPEED, LANE_P, MEAN, AMPLITUDE, PERIOD, INTERVAL, N_LANES, STOP_P, MAX_STOP, PARK_LANE,
+ PARK_DISTANCE) = range(P_PID + CTRL_PARAMS, P_PID + CTRL_PARAMS + 11)
+NP = P_PID + CTRL_PARAMS + 11
 MAX_LANES = 16
 RAND_BUF = 64
 
 KMH = 3.6
 NO_CAR_M = 200.0
-SPEED_UNIT_KMH = 50.0
 FRONT_SIDE_SECTORS = 9       # FRONT_CONE_DEG = 90: sectors 9..26
 LATERAL_MARGIN_M = 0.4
 PLAN_DECEL = 3.0
@@ -63,7 +73,6 @@ GUARD_SPEED = 3.0
 CREEP_SPEED = 1.0
 CREEP_GAP_M = 0.3
 STOP_TOLERANCE_M = 0.25
-_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)
 
 # (cos, sin) of five bearings spanning each opponents sector j, [(j - 18) * 10, (j - 17) * 10] deg
 SUB_BEARINGS = np.array([[[math.cos(math.radians((j - 18) * 10.0 + 2.5 * k)),
@@ -72,40 +81,8 @@ SUB_BEARINGS = np.array([[[math.cos(math.radians((j - 18) * 10.0 + 2.5 * k)),
 
 
 @njit(cache=True, inline="always")
-def _min(a, b):
-    return b if b < a else a          # Python's min(a, b)
-
-
-@njit(cache=True, inline="always")
-def _max(a, b):
-    return b if b > a else a          # Python's max(a, b)
-
-
-@njit(cache=True, inline="always")
 def _wrap(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-@njit(cache=True)
-def _pid(S, P, r, error, integral_col, kp_col):
-    """One discrete PID tick (madsim.agents.pid.PID): kick-free and anti-windup unless compat."""
-    compat = P[r, COMPAT] != 0.0
-    first = integral_col + 2
-    prev_col = integral_col + 1
-    if S[r, first] != 0.0 and not compat:
-        S[r, prev_col] = error
-    S[r, first] = 0.0
-    derivative = error - S[r, prev_col]
-    S[r, prev_col] = error
-    held = S[r, integral_col]
-    integral = held + error
-    kp, ki, kd = P[r, kp_col], P[r, kp_col + 1], P[r, kp_col + 2]
-    out = kp * error + ki * integral + kd * derivative
-    if not compat and ((out > 1.0 and error > 0.0) or (out < -1.0 and error < 0.0)):
-        integral = held
-        out = kp * error + ki * integral + kd * derivative
-    S[r, integral_col] = integral
-    return out
 
 
 @njit(cache=True)
@@ -128,7 +105,7 @@ def _observe(sens, S, P, r):
         # d(angle)/dt = kappa_road * v - yaw rate, yaw rate = v * tan(wheel angle) / wheelbase
         kappa_car = math.tan(S[r, STEER] * P[r, STEER_LOCK]) / P[r, WHEELBASE]
         raw = kappa_car + _wrap(angle - S[r, ANGLE_PREV]) / (v * tick)
-        S[r, KAPPA] += _min(1.0, tick / CURVATURE_TAU_S) * (raw - S[r, KAPPA])
+        S[r, KAPPA] += py_min(1.0, tick / CURVATURE_TAU_S) * (raw - S[r, KAPPA])
     S[r, ANGLE_PREV], S[r, HAS_ANGLE_PREV] = angle, 1.0
 
 
@@ -197,8 +174,8 @@ def _target(sens, S, P, lanes, rand, kind, r, t_s):
             S[r, PARKED] = 1.0
         if S[r, PARKED] != 0.0:
             return P[r, PARK_LANE], 0.0
-        speed = _min(P[r, SPEED], math.sqrt(2.0 * PLAN_DECEL * _max(rem, 0.0)))
-        return P[r, PARK_LANE], _max(speed, 0.5)
+        speed = py_min(P[r, SPEED], math.sqrt(2.0 * PLAN_DECEL * py_max(rem, 0.0)))
+        return P[r, PARK_LANE], py_max(speed, 0.5)
     return sens[r, O_TPOS], 0.0           # K_PARKED
 
 
@@ -213,20 +190,20 @@ def _gaps_ahead(sens, S, P, r, lane_a, lane_b, max_range_m):
     lo_s = hi_s = 0.0
     if hw != 0.0:
         sa, sb = (lane_a - tpos) * hw, (lane_b - tpos) * hw
-        lo_s = _min(_min(lo_s, sa), sb)
-        hi_s = _max(_max(hi_s, sa), sb)
+        lo_s = py_min(py_min(lo_s, sa), sb)
+        hi_s = py_max(py_max(hi_s, sa), sb)
     lo_edge, hi_edge = lo_s - reach, hi_s + reach
     # road curvatures to allow for: 0 .. estimate, cut to what the free ray ahead allows
-    k_lo, k_hi = _min(0.0, kappa), _max(0.0, kappa)
+    k_lo, k_hi = py_min(0.0, kappa), py_max(0.0, kappa)
     ahead = sens[r, O_TRACK + 9]
     if ahead > 0.0 and hw != 0.0:
         y0 = tpos * hw - heading * ahead
         ray_lo, ray_hi = 2.0 * (y0 - hw) / ahead ** 2, 2.0 * (y0 + hw) / ahead ** 2
-        k_lo, k_hi = _max(k_lo, ray_lo), _min(k_hi, ray_hi)
+        k_lo, k_hi = py_max(k_lo, ray_lo), py_min(k_hi, ray_hi)
         if k_lo > k_hi:
-            k_lo = k_hi = _min(_max(kappa, ray_lo), ray_hi)
+            k_lo = k_hi = py_min(py_max(kappa, ray_lo), ray_hi)
     cos_h, sin_h = math.cos(heading), math.sin(heading)
-    max_range_m = _min(max_range_m, NO_CAR_M)
+    max_range_m = py_min(max_range_m, NO_CAR_M)
     sure = possible = math.inf
     for j in range(18 - FRONT_SIDE_SECTORS, 18 + FRONT_SIDE_SECTORS):
         d = sens[r, O_OPP + j]
@@ -240,9 +217,9 @@ def _gaps_ahead(sens, S, P, r, lane_a, lane_b, max_range_m):
                 continue
             e_hi, e_lo = y - k_lo * 0.5 * x * x, y - k_hi * 0.5 * x * x
             if e_lo <= hi_edge and e_hi >= lo_edge:
-                possible = _min(possible, x - length)
+                possible = py_min(possible, x - length)
                 if step == 2 and lo_edge <= e_lo and e_hi <= hi_edge:
-                    sure = _min(sure, x - length)
+                    sure = py_min(sure, x - length)
     return sure, possible
 
 
@@ -254,59 +231,50 @@ def _drive(sens, S, P, ctrl, r, lane, speed):
     hw, kappa = S[r, HALF_WIDTH], S[r, KAPPA]
     min_safe, window = P[r, MIN_SAFE], P[r, WINDOW_S]
     if S[r, HAS_LANE_CMD] == 0.0:
-        S[r, LANE_CMD], S[r, HAS_LANE_CMD] = _max(-1.0, _min(1.0, tpos)), 1.0
+        S[r, LANE_CMD], S[r, HAS_LANE_CMD] = py_max(-1.0, py_min(1.0, tpos)), 1.0
     step = LANE_SPEED * P[r, TICK] / (hw if hw != 0.0 else 5.0)
-    S[r, LANE_CMD] += _max(-step, _min(step, lane - S[r, LANE_CMD]))
+    S[r, LANE_CMD] += py_max(-step, py_min(step, lane - S[r, LANE_CMD]))
     lane_des = S[r, LANE_CMD]
     stopping = speed <= 0.0
-    relevant = P[r, LENGTH] + min_safe + window * _max(speed, v) + 5.0
+    relevant = P[r, LENGTH] + min_safe + window * py_max(speed, v) + 5.0
     sure, possible = _gaps_ahead(sens, S, P, r, lane, lane_des, relevant)
     creep = CREEP_SPEED if possible > CREEP_GAP_M else 0.0
     # speed the road allows: stop before the edge ahead, limit the corner acceleration
     ahead = sens[r, O_TRACK + 7]
     for i in range(8, 12):
-        ahead = _max(ahead, sens[r, O_TRACK + i])
+        ahead = py_max(ahead, sens[r, O_TRACK + i])
     cap = math.inf
     if ahead > 0.0:
-        cap = math.sqrt(2.0 * PLAN_DECEL * _max(ahead - min_safe, 0.0))
+        cap = math.sqrt(2.0 * PLAN_DECEL * py_max(ahead - min_safe, 0.0))
     if abs(kappa) > 1e-6:
-        cap = _min(cap, math.sqrt(LAT_ACCEL / abs(kappa)))
-    cap = _max(cap, GUARD_SPEED)
-    v_des = _min(_min(_min(_max(speed, 0.0), cap), _max(0.0, (sure - min_safe) / window)),
-                 _max(creep, (possible - min_safe) / window))
+        cap = py_min(cap, math.sqrt(LAT_ACCEL / abs(kappa)))
+    cap = py_max(cap, GUARD_SPEED)
+    v_des = py_min(py_min(py_min(py_max(speed, 0.0), cap), py_max(0.0, (sure - min_safe) / window)),
+                 py_max(creep, (possible - min_safe) / window))
     blocked = sure < min_safe or possible < CREEP_GAP_M
     # off-track guard: steer back towards the road, not towards the nearer edge
     cut = False
     if abs(tpos) >= 1.0:
         lane_des = 0.0
-        v_des = _min(v_des, GUARD_SPEED)
+        v_des = py_min(v_des, GUARD_SPEED)
     else:
         side = 1.0 if tpos > 0.0 else -1.0
         edge_m = (1.0 - abs(tpos)) * (hw if hw != 0.0 else 1.0)
         outward = -side * v * math.sin(angle)             # m/s towards the near edge
         inside = abs(tpos) - 0.3
         if edge_m < outward * GUARD_HORIZON_S:
-            lane_des = side * (_max(lane_des * side, inside) if lane_des * side < abs(tpos)
+            lane_des = side * (py_max(lane_des * side, inside) if lane_des * side < abs(tpos)
                                else inside)
             cut = True
         elif edge_m < min_safe and lane_des * side < abs(tpos) - 0.05:
-            lane_des = side * _max(lane_des * side, inside)
+            lane_des = side * py_max(lane_des * side, inside)
     # the PID sees the angle of the motion (kinematic sideslip atan(b kappa) in a bend)
     slip = math.atan(P[r, REAR_AXLE] * kappa)
-    S[r, PID_LANE] = tpos
-    S[r, PID_ANGLE] = (angle - slip) / math.pi
-    S[r, PID_VEL] = sens[r, O_SX] / SPEED_UNIT_KMH
-    steer_error = S[r, PID_ANGLE] - (S[r, PID_LANE] - lane_des) * P[r, STEER_SCALE]
-    accel_error = (v_des * KMH / SPEED_UNIT_KMH - S[r, PID_VEL]) * P[r, ACCEL_SCALE]
-    steer = _pid(S, P, r, steer_error, S_INTEGRAL, STEER_KP)
-    accel = _pid(S, P, r, accel_error, A_INTEGRAL, ACCEL_KP)
-    if P[r, COMPAT] != 0.0:
-        brake = 1.0 if accel < 0.0 else 0.0
-    else:
-        steer, brake, accel = _min(1.0, _max(-1.0, steer)), _min(1.0, _max(0.0, -accel)), \
-            _min(1.0, _max(0.0, accel))
+    s, p = S[r], P[r]
+    observe(s, S_PID, tpos, angle - slip, sens[r, O_SX])
+    steer, accel, brake = pid_controls(s, S_PID, p, P_PID, lane_des, v_des * KMH)
     steer += math.atan(P[r, WHEELBASE] * kappa) / P[r, STEER_LOCK]
-    steer = _max(-1.0, _min(1.0, steer))
+    steer = py_max(-1.0, py_min(1.0, steer))
     if stopping or cut:
         accel = 0.0
     if (stopping and v < HOLD_SPEED) or blocked:
@@ -315,7 +283,7 @@ def _drive(sens, S, P, ctrl, r, lane, speed):
         steer = 0.0
     S[r, STEER] = steer
     gear = 1.0
-    for threshold in _GEAR_KMH:
+    for threshold in SPEED_GEAR_KMH:
         if sens[r, O_SX] > threshold:
             gear += 1.0
     ctrl[r, 0], ctrl[r, 1], ctrl[r, 2], ctrl[r, 3] = steer, accel, brake, gear

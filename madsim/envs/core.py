@@ -34,12 +34,12 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from madsim.agents.batched import ComponentBatch, weighted_sum
+from madsim.agents.batched import BatchedTS, ComponentBatch, weighted_sum
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
 from madsim.agents.observations import ObservationBuilder
-from madsim.agents.pid import PIDController, TrackSpeedController, speed_gear
+from madsim.agents.pid import PIDController, speed_gear
 from madsim.agents.rewards import TICK_S, RewardSet
 from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import LocalBackend
@@ -52,7 +52,7 @@ from madsim.envs.config import (
     load_config,
 )
 from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
-from madsim.physics.sensors import INT_FIELDS, SENSOR_OFFSETS
+from madsim.physics.sensors import INT_FIELDS, O_SX, SENSOR_OFFSETS
 
 __all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
 
@@ -145,10 +145,10 @@ class _Driver:
         self.dones = ComponentBatch(self.done_components, 1)
         self._length = np.zeros(1)
         self.controller = None
+        self.target_speed = float(agent.target_speed)
         if self.ts:
-            self.controller = TrackSpeedController(
-                PIDController.from_config(agent.pid), target_speed=agent.target_speed,
-                track_limits=s.track_limits, normalised=self.normalised)
+            self.controller = BatchedTS(PIDController.from_config(agent.pid), s.track_limits,
+                                        self.normalised, 1)
         self.ticks = agent.pid.latency if self.ts else 1
         self._sab = _STOP
         self._gear = 1.0
@@ -179,28 +179,27 @@ class _Driver:
             g = action[-1]
             self._gear = float(round(-1.0 + 3.5 * (g + 1.0)) if self.normalised else round(g))
         if self.ts:
-            self.controller.set_action(action)
+            self.controller.set_action(_SLOT0, np.array([action]))
         elif self.normalised:
             self._sab = (action[0], (action[1] + 1.0) / 2.0, (action[2] + 1.0) / 2.0)
         else:
             self._sab = (action[0], action[1], action[2])
 
-    def fill(self, u: np.ndarray, row: SensorRow) -> None:
-        """Write the controls of the coming tick into u (5,) from the latest sensors."""
+    def fill(self, u: np.ndarray, row: np.ndarray) -> None:
+        """Write the controls of the coming tick into u (5,) from the latest sensors (79,)."""
         if self.ts:
-            c = self.controller.act(row)
-            u[0], u[1], u[2], u[3] = c[0], c[1], c[2], c[3]
+            steer, accel, brake = self.controller.act(_SLOT0, row[None, :])
+            u[0], u[1], u[2] = steer[0], accel[0], brake[0]
         else:
             u[0], u[1], u[2] = self._sab
-            u[3] = speed_gear(row["speedX"])
-        if self.manual:
-            u[3] = self._gear
+        u[3] = self._gear if self.manual else speed_gear(row[O_SX])
 
-    def reset(self, row: SensorRow, track_length: float) -> None:
+    def reset(self, row: np.ndarray, track_length: float) -> None:
+        """Start an episode from the agent's first sensor row (79,) on a track of length m."""
         self.rewards.start(0, self.reward_components, track_length)
         self.dones.start(0, self.done_components, track_length)
         if self.controller is not None:
-            self.controller.reset(row)
+            self.controller.reset(0, row, self.target_speed)
         self._length[0] = track_length
         self._sab = _STOP
 
@@ -345,7 +344,6 @@ class MadrasCore:
                                    noisy=cfg.server.observation_noise,
                                    rng=np.random.default_rng(obs_ss))
         self.frame = frame
-        self.rows = [SensorRow(v) for v in frame.flat.tolist()]
         self.controls = np.zeros((len(plan.cars), 5))
         self.agent_rows = {name: plan.row(name) for name in plan.agents}
         self.behaviours = [self._behaviour(stage, j) for j in range(plan.n_traffic)]
@@ -363,7 +361,7 @@ class MadrasCore:
         self.tick = 0
         self._init_wait(cfg.server.init_wait * self.ticks_per_step)
         for name in self.live:
-            stage.drivers[name].reset(self.rows[self.agent_rows[name]], track.length)
+            stage.drivers[name].reset(self.frame.flat[self.agent_rows[name]], track.length)
         if self.hub is not None:
             self.hub.reset()
         shared = {"seed": plan.seed, "episode": plan.episode, "stage": self.stage_index(),
@@ -378,19 +376,23 @@ class MadrasCore:
         obs = {name: self._observe(name, self.frame, self.agent_rows[name]) for name in self.live}
         return obs, infos
 
+    @property
+    def rows(self) -> list[SensorRow]:
+        """The latest sensors of every car, as SensorRows (by car row)."""
+        return [SensorRow(v) for v in self.frame.flat.tolist()]
+
     def _init_wait(self, ticks: int) -> None:
         """MADRaS devel's init_wait: learners hold the stop action, traffic drives."""
         for _ in range(ticks):
             for name in self.live:
                 k = self.agent_rows[name]
                 self.controls[k, :3] = _STOP
-                self.controls[k, 3] = speed_gear(self.rows[k]["speedX"])
+                self.controls[k, 3] = speed_gear(self.frame.flat[k, O_SX])
             self._traffic_controls(self.frame)
             frame = self.backend.step(self.controls)
             if frame is None:
                 raise ConnectionError("the simulator ended the race during init_wait")
             self.frame = frame
-            self.rows = [SensorRow(v) for v in frame.flat.tolist()]
 
     def _traffic_controls(self, frame) -> None:
         """Traffic controls for the coming tick from the latest sensors (one fleet call)."""
@@ -418,8 +420,9 @@ class MadrasCore:
             if name not in actions:
                 raise ValueError(f"no action for live agent {name!r}")
             chosen[name] = drivers[name].check(actions[name])
-        rows, agent_rows = self.rows, self.agent_rows
+        agent_rows = self.agent_rows
         if self.hub is not None:
+            rows = self.rows
             self.hub.send({n: rows[agent_rows[n]] for n in self.live}, chosen)
         for name in self.live:
             drivers[name].begin(chosen[name], self.action_rng)
@@ -431,7 +434,7 @@ class MadrasCore:
         frame = self.frame
         for _ in range(self.ticks_per_step):
             for name, drv, k, st in running:
-                drv.fill(u[k], rows[k])
+                drv.fill(u[k], frame.flat[k])
             if self.behaviours:
                 self._traffic_controls(frame)    # this tick's sensors, not the step's first
             new = backend.step(u)
@@ -442,7 +445,6 @@ class MadrasCore:
                 running = []
                 break
             prev_flat, frame = frame.flat, new
-            new_rows = [SensorRow(v) for v in frame.flat.tolist()]
             hits = backend.collisions()
             still = []
             for entry in running:
@@ -464,11 +466,10 @@ class MadrasCore:
                     u[k, 4] = 0.0
                 else:
                     still.append(entry)
-            rows = new_rows
             running = still
             if not running:
                 break
-        self.rows, self.frame = rows, frame
+        self.frame = frame
         for name, drv, k, st in running:
             st[5] = frame
         obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}
