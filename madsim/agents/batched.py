@@ -114,15 +114,12 @@ class ComponentBatch:
         return out
 
 
-def weighted_sum(values: np.ndarray, weights) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(total (m,), terms [(m,)]) of reward values (k, m) with signed weights (k,), summed in
-    component order (what every env reports)."""
+def weighted_sum(values: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(total (m,), terms (k, m)) of reward values (k, m) with signed weights (k,) float64,
+    summed in component order (what every env reports)."""
+    terms = np.empty_like(values)
     total = np.zeros(values.shape[1])
-    terms = []
-    for w, v in zip(weights, values):
-        term = w * v
-        terms.append(term)
-        total += term
+    ck.weigh(values, weights, terms, total)
     return total, terms
 
 

@@ -136,7 +136,7 @@ class _Driver:
                                    track_limits=s.track_limits,
                                    target_speed=agent.target_speed).components
         self.reward_names = [name for name, _, _ in rewards]
-        self.weights = [w for _, w, _ in rewards]
+        self.weights = np.array([w for _, w, _ in rewards], dtype=np.float64)
         self.reward_components = [c for _, _, c in rewards]
         self.rewards = ComponentBatch(self.reward_components, 1)
         self.done_names = [name for name, _ in dones]
@@ -210,12 +210,14 @@ class _Driver:
         actions = [action]
         total, terms = weighted_sum(self.rewards.evaluate(_SLOT0, prev, cur, self._length, hit,
                                                           actions), self.weights)
-        fired = self.dones.evaluate(_SLOT0, prev, cur, self._length, hit, actions)[:, 0]
-        names = tuple(n for n, f in zip(self.done_names, fired.tolist()) if f)
-        term = any(f and not t for f, t in zip(fired.tolist(), self.truncation))
-        trunc = any(f and t for f, t in zip(fired.tolist(), self.truncation))
-        return (float(total[0]), {n: float(v[0]) for n, v in zip(self.reward_names, terms)},
-                term, trunc, names)
+        terms = dict(zip(self.reward_names, terms[:, 0].tolist()))
+        fired = self.dones.evaluate(_SLOT0, prev, cur, self._length, hit, actions)[:, 0].tolist()
+        if not any(fired):
+            return float(total[0]), terms, False, False, ()
+        names = tuple(n for n, f in zip(self.done_names, fired) if f)
+        term = any(f and not t for f, t in zip(fired, self.truncation))
+        trunc = any(f and t for f, t in zip(fired, self.truncation))
+        return float(total[0]), terms, term, trunc, names
 
 
 @dataclasses.dataclass

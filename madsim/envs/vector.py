@@ -165,7 +165,7 @@ class MadrasVectorEnv(VectorEnv):
             self._factory = default_traffic_factory()
         first = self._stages[0]
         self._reward_names = [name for name, _, _ in first.rewards.components]
-        self._weights = [w for _, w, _ in first.rewards.components]
+        self._weights = np.array([w for _, w, _ in first.rewards.components], dtype=np.float64)
         self._rewards = ComponentBatch([c for _, _, c in first.rewards.components], n)
         self._done_names = [name for name, _ in first.dones.components]
         self._is_trunc = np.array([c.truncation for _, c in first.dones.components], dtype=bool)
@@ -438,8 +438,7 @@ class MadrasVectorEnv(VectorEnv):
             if terms is None:
                 terms = values
             else:
-                for acc, v in zip(terms, values):
-                    acc[running] += v
+                terms[:, running] += values
             ticks[running] += 1
             d_fired = self._dones.evaluate(run, prev, cur, length, collision, actions).T != 0.0
             d_term = (d_fired & ~self._is_trunc).any(axis=1)
@@ -465,7 +464,9 @@ class MadrasVectorEnv(VectorEnv):
         stepped = np.zeros(n, dtype=bool)
         stepped[slots] = True
         reward_terms: dict = {}
-        for name, v in zip(self._reward_names, terms or [np.zeros(m)] * len(self._reward_names)):
+        if terms is None:
+            terms = np.zeros((len(self._reward_names), m))
+        for name, v in zip(self._reward_names, terms):
             full = np.zeros(n)
             full[slots] = v
             reward_terms[name] = full
