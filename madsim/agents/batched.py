@@ -22,7 +22,7 @@ from madsim.agents.pid import (
     observe,
     ts_act,
 )
-from madsim.agents.traffic_fleet import WireRow
+from madsim.agents.sensor_row import SensorRow
 from madsim.physics.sensors import N_VALUES, O_ANGLE, O_SX, O_TPOS, SENSOR_OFFSETS
 
 
@@ -80,7 +80,7 @@ class ComponentBatch:
     `evaluate(slots, prev, cur, length, collision, actions)` -> (components, m) float64 values
     (dones 1.0 / 0.0) from the rows (m, 79) before and after the tick, length (m,) m and
     collision (m,) bool. Built-ins take one compiled call; a Python component is one deep copy
-    per slot, called row by row with WireRows (actions: the slots' checked actions, for them)."""
+    per slot, called row by row with SensorRows (actions: the slots' checked actions, for them)."""
 
     def __init__(self, components, n: int):
         k = len(components)
@@ -109,7 +109,7 @@ class ComponentBatch:
             objects = self.objects[i]
             for j, e in enumerate(slots.tolist()):
                 info = {"track_length": float(length[j]), "collision": bool(collision[j])}
-                out[i, j] = objects[e](WireRow(prev[j]), WireRow(cur[j]),
+                out[i, j] = objects[e](SensorRow(prev[j]), SensorRow(cur[j]),
                                        None if actions is None else actions[j], info)
         return out
 

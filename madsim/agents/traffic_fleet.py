@@ -17,38 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from madsim.agents import traffic_kernel as tk
-from madsim.physics.sensors import INT_FIELDS, SENSOR_OFFSETS
+from madsim.agents.sensor_row import SensorRow
 
-__all__ = ["TrafficFleet", "WireRow"]
-
-_FIELDS = {name: (o, w, name in INT_FIELDS) for name, (o, w) in SENSOR_OFFSETS.items()}
-
-
-class WireRow:
-    """One car's SCR sensors by name, read from a wire-order row (79 values) without a copy:
-    scalars as float (damage, gear, racePos as int), arrays as lists."""
-
-    __slots__ = ("values",)
-
-    def __init__(self, values):
-        self.values = values
-
-    def __getitem__(self, name: str):
-        o, w, is_int = _FIELDS[name]
-        if w == 1:
-            v = float(self.values[o])
-            return int(v) if is_int else v
-        return [float(x) for x in self.values[o:o + w]]
-
-    def get(self, name: str, default=None):
-        return self[name] if name in _FIELDS else default
-
-    def __contains__(self, name) -> bool:
-        return name in _FIELDS
-
-    def keys(self):
-        return _FIELDS.keys()
-
+__all__ = ["TrafficFleet"]
 
 class TrafficFleet:
     """Arrays of `n` traffic rows (see the module docstring); rows without a car are skipped."""
@@ -98,7 +69,7 @@ class TrafficFleet:
             self._events(sensors, controls, rows[events != 0.0])
         if self._n_python:
             for r in rows[self.kind[rows] == tk.K_FOREIGN].tolist():
-                steer, accel, brake, gear = self.objects[r].act(WireRow(sensors[r]))
+                steer, accel, brake, gear = self.objects[r].act(SensorRow(sensors[r]))
                 controls[r, 0], controls[r, 1], controls[r, 2], controls[r, 3] = \
                     steer, accel, brake, gear
 
@@ -118,7 +89,7 @@ class TrafficFleet:
         for r in rows.tolist():
             event, t_s, obj = S[r, tk.EVENT], float(S[r, tk.T_S]), self.objects[r]
             if event == tk.EV_TARGET:
-                lane, speed = obj.target(WireRow(sensors[r]), t_s)
+                lane, speed = obj.target(SensorRow(sensors[r]), t_s)
                 S[r, tk.TARGET_LANE], S[r, tk.TARGET_SPEED] = float(lane), float(speed)
                 user.append(r)
             else:

@@ -40,6 +40,7 @@ from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController, speed_gear
+from madsim.agents.sensor_row import SensorRow
 from madsim.agents.rewards import TICK_S, RewardSet
 from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import LocalBackend
@@ -52,37 +53,13 @@ from madsim.envs.config import (
     load_config,
 )
 from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
-from madsim.physics.sensors import INT_FIELDS, O_SX, SENSOR_OFFSETS
+from madsim.physics.sensors import O_SX
 
 __all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
 
-_FIELDS = {name: (o, w, name in INT_FIELDS) for name, (o, w) in SENSOR_OFFSETS.items()}
 _STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
 _SLOT0 = np.zeros(1, dtype=np.int64)
 _HIT, _NO_HIT = np.ones(1, dtype=bool), np.zeros(1, dtype=bool)
-
-
-class SensorRow(Mapping):
-    """One car's SCR sensors by name, read from its wire-order values (a list of 79 floats)
-    without building a dict: scalars as float (damage, gear, racePos as int), arrays as
-    lists; the same values as `SensorFrame.row(k)`."""
-
-    __slots__ = ("values",)
-
-    def __init__(self, values: list):
-        self.values = values
-
-    def __getitem__(self, name: str):
-        o, w, is_int = _FIELDS[name]
-        if w == 1:
-            return int(self.values[o]) if is_int else self.values[o]
-        return self.values[o:o + w]
-
-    def __iter__(self):
-        return iter(_FIELDS)
-
-    def __len__(self) -> int:
-        return len(_FIELDS)
 
 
 def default_traffic_factory() -> Callable[[TrafficConfig], Any]:
