@@ -158,3 +158,71 @@ class BatchedTS:
         ts_act(self.state, self.params, self.fresh, self.lane_des, self.speed_des_kmh, slots,
                rows, out)
         return out[:, 0], out[:, 1], out[:, 2]
+
+
+_STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
+
+
+class ActionMap:
+    """A learner's actions over slots -> the controls of every tick of the step.
+
+    low, high (dim,): the action Box; ts: T-S actions through `BatchedTS` (pid: its
+    PIDController, track_limits), else S-A-B (normalised: accel and brake from [-1, 1]);
+    manual: the last action component is the gear. Per step: `begin(slots, actions, rngs)`
+    (checked actions (m, dim); Gaussian noise of each slot's std from its generator, clipped
+    again), then per tick `controls(slots, rows)` from the latest sensor rows (m, 79).
+    """
+
+    def __init__(self, low, high, *, ts: bool, normalised: bool, manual: bool, pid, track_limits,
+                 n: int):
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        self.dim = self.low.shape[0]
+        self.ts, self.normalised, self.manual = ts, normalised, manual
+        self.pid = BatchedTS(pid, track_limits, normalised, n) if ts else None
+        self.noise_std = np.zeros(n)
+        self.sab = np.tile(_STOP, (n, 1))
+        self.gear = np.ones(n)
+
+    def clip(self, actions: np.ndarray) -> np.ndarray:
+        """Actions (m, dim) clipped into the Box."""
+        return np.minimum(self.high, np.maximum(self.low, actions))
+
+    def start(self, e: int, row: np.ndarray, target_speed: float, noise_std: float) -> None:
+        """Slot e's episode starts: first sensor row (79,), target speed m/s, noise std."""
+        if self.pid is not None:
+            self.pid.reset(e, row, target_speed)
+        self.sab[e] = _STOP
+        self.noise_std[e] = noise_std
+
+    def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
+        """Take this step's checked actions (m, dim) of slots; rngs: a generator per slot."""
+        noisy = np.flatnonzero(self.noise_std[slots] > 0.0)
+        if noisy.size:
+            chosen = chosen.copy()
+            for i in noisy.tolist():
+                e = slots[i]
+                noise = rngs[i].normal(0.0, self.noise_std[e], self.dim)
+                chosen[i] = self.clip(chosen[i] + noise)
+        if self.manual:
+            g = chosen[:, -1]
+            # Python's round() and np.round both round halves to even
+            self.gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self.normalised else g)
+        if self.ts:
+            self.pid.set_action(slots, chosen)
+        elif self.normalised:
+            self.sab[slots] = np.stack([chosen[:, 0], (chosen[:, 1] + 1.0) / 2.0,
+                                        (chosen[:, 2] + 1.0) / 2.0], axis=1)
+        else:
+            self.sab[slots] = chosen[:, :3]
+
+    def controls(self, slots: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Controls (m, 4: steer, accel, brake, gear) of the coming tick for slots from their
+        latest sensor rows (m, 79)."""
+        out = np.empty((slots.shape[0], 4))
+        if self.ts:
+            out[:, 0], out[:, 1], out[:, 2] = self.pid.act(slots, rows)
+        else:
+            out[:, :3] = self.sab[slots]
+        out[:, 3] = self.gear[slots] if self.manual else speed_gear_many(rows[:, O_SX])
+        return out

@@ -34,7 +34,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from madsim.agents.batched import BatchedTS, ComponentBatch, weighted_sum
+from madsim.agents.batched import ActionMap, ComponentBatch, weighted_sum
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
@@ -101,13 +101,15 @@ class _Driver:
     def __init__(self, agent: AgentConfig, cfg: ScenarioConfig, space: gymnasium.spaces.Box):
         s = cfg.server
         self.name = agent.name
-        self.low = [float(v) for v in space.low]
-        self.high = [float(v) for v in space.high]
-        self.dim = len(self.low)
+        self.dim = space.shape[0]
         self.ts = agent.action.space == "TS"
-        self.normalised = agent.action.normalised
-        self.manual = agent.gear == "manual"
         self.noise_std = float(agent.action_noise_std)
+        self.target_speed = float(agent.target_speed)
+        self.actions = ActionMap(space.low, space.high, ts=self.ts,
+                                 normalised=agent.action.normalised,
+                                 manual=agent.gear == "manual",
+                                 pid=PIDController.from_config(agent.pid),
+                                 track_limits=s.track_limits, n=1)
         rewards = RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed).components
         dones = DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
                                    track_limits=s.track_limits,
@@ -121,14 +123,7 @@ class _Driver:
         self.done_components = [c for _, c in dones]
         self.dones = ComponentBatch(self.done_components, 1)
         self._length = np.zeros(1)
-        self.controller = None
-        self.target_speed = float(agent.target_speed)
-        if self.ts:
-            self.controller = BatchedTS(PIDController.from_config(agent.pid), s.track_limits,
-                                        self.normalised, 1)
         self.ticks = agent.pid.latency if self.ts else 1
-        self._sab = _STOP
-        self._gear = 1.0
 
     def check(self, action) -> list[float]:
         """The action as a list of floats clipped into the Box; ValueError if malformed."""
@@ -144,41 +139,22 @@ class _Driver:
             if not math.isfinite(v):
                 raise ValueError(f"action for agent {self.name!r} has a non-finite value at "
                                  f"index {i}: {v}")
-        return [min(h, max(lo, v)) for v, lo, h in zip(values, self.low, self.high)]
+        return self.actions.clip(a).tolist()
 
     def begin(self, action: list[float], rng: np.random.Generator) -> None:
         """Take this step's (checked) action: add noise, map to controls / PID targets."""
-        if self.noise_std > 0.0:
-            noise = rng.normal(0.0, self.noise_std, self.dim).tolist()
-            action = [min(h, max(lo, v + e))
-                      for v, e, lo, h in zip(action, noise, self.low, self.high)]
-        if self.manual:
-            g = action[-1]
-            self._gear = float(round(-1.0 + 3.5 * (g + 1.0)) if self.normalised else round(g))
-        if self.ts:
-            self.controller.set_action(_SLOT0, np.array([action]))
-        elif self.normalised:
-            self._sab = (action[0], (action[1] + 1.0) / 2.0, (action[2] + 1.0) / 2.0)
-        else:
-            self._sab = (action[0], action[1], action[2])
+        self.actions.begin(_SLOT0, np.array([action]), [rng])
 
     def fill(self, u: np.ndarray, row: np.ndarray) -> None:
         """Write the controls of the coming tick into u (5,) from the latest sensors (79,)."""
-        if self.ts:
-            steer, accel, brake = self.controller.act(_SLOT0, row[None, :])
-            u[0], u[1], u[2] = steer[0], accel[0], brake[0]
-        else:
-            u[0], u[1], u[2] = self._sab
-        u[3] = self._gear if self.manual else speed_gear(row[O_SX])
+        u[:4] = self.actions.controls(_SLOT0, row[None, :])[0]
 
     def reset(self, row: np.ndarray, track_length: float) -> None:
         """Start an episode from the agent's first sensor row (79,) on a track of length m."""
         self.rewards.start(0, self.reward_components, track_length)
         self.dones.start(0, self.done_components, track_length)
-        if self.controller is not None:
-            self.controller.reset(0, row, self.target_speed)
+        self.actions.start(0, row, self.target_speed, self.noise_std)
         self._length[0] = track_length
-        self._sab = _STOP
 
     def score(self, prev: np.ndarray, cur: np.ndarray, action: list[float], collision: bool):
         """(reward, terms by name, terminated, truncated, dones fired) of one tick from the

@@ -33,7 +33,7 @@ from gymnasium.vector.utils import batch_space
 
 from madsim.agents import dones as D
 from madsim.agents import rewards as R
-from madsim.agents.batched import BatchedTS, ComponentBatch, speed_gear_many, weighted_sum
+from madsim.agents.batched import ActionMap, ComponentBatch, speed_gear_many, weighted_sum
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
@@ -147,13 +147,14 @@ class MadrasVectorEnv(VectorEnv):
         self.single_observation_space = self.builder.space
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
-        self._low = self.single_action_space.low.astype(np.float64)
-        self._high = self.single_action_space.high.astype(np.float64)
-        self._dim = self._low.shape[0]
-        self._ts = agent.action.space == "TS"
-        self._normalised = agent.action.normalised
-        self._manual = agent.gear == "manual"
-        self.ticks_per_step = agent.pid.latency if self._ts else 1
+        ts = agent.action.space == "TS"
+        self._actions = ActionMap(self.single_action_space.low, self.single_action_space.high,
+                                  ts=ts, normalised=agent.action.normalised,
+                                  manual=agent.gear == "manual",
+                                  pid=PIDController.from_config(agent.pid), track_limits=limits,
+                                  n=n)
+        self._dim = self._actions.dim
+        self.ticks_per_step = agent.pid.latency if ts else 1
 
         stage_cfgs = [cfg] if cfg.curriculum is None else [
             apply_stage(cfg, st) for st in cfg.curriculum.stages]
@@ -171,8 +172,6 @@ class MadrasVectorEnv(VectorEnv):
         self._is_trunc = np.array([c.truncation for _, c in first.dones.components], dtype=bool)
         self._dones = ComponentBatch([c for _, c in first.dones.components], n)
         self._scalar = bool(self._rewards.python or self._dones.python)
-        self._pid = (BatchedTS(PIDController.from_config(agent.pid), limits, self._normalised, n)
-                     if self._ts else None)
         needs_focus = "focus" in self.builder.fields
         self.batch = WorldBatch(n, capacity, contact=contact, fuel=fuel, damage=damage,
                                 threads=threads, focus=needs_focus,
@@ -192,9 +191,6 @@ class MadrasVectorEnv(VectorEnv):
         self._progress = np.zeros(n, dtype=np.int64)
         self._row = np.zeros(n, dtype=np.int64)    # the learner's row in the batch
         self._length = np.zeros(n)
-        self._noise_std = np.zeros(n)
-        self._sab = np.tile(_STOP, (n, 1))
-        self._gear = np.ones(n)
         self._live = np.zeros(n, dtype=bool)
         self._started = False
         self._obs = np.zeros((n, self.builder.size), dtype=np.float32)
@@ -278,9 +274,8 @@ class MadrasVectorEnv(VectorEnv):
             length = self._length[e]
             self._rewards.start(e, [c for _, _, c in st.rewards.components], length)
             self._dones.start(e, [c for _, c in st.dones.components], length)
-            if self._pid is not None:
-                self._pid.reset(e, batch.sensors[self._row[e]], st.agent.target_speed)
-            self._sab[e] = _STOP
+            self._actions.start(e, batch.sensors[self._row[e]], st.agent.target_speed,
+                                st.agent.action_noise_std)
             infos = self._add_info(infos, info, e)
         self._obs[slots] = self._observe(rows)
         self._live[slots] = True
@@ -303,7 +298,6 @@ class MadrasVectorEnv(VectorEnv):
         k = plan.row(self.agent)
         self._row[e] = self.batch.offsets[e] + k
         self._length[e] = track.length
-        self._noise_std[e] = stage.agent.action_noise_std
         a = int(self.batch.offsets[e])
         self.fleet.clear(slice(a, a + self.batch.capacity))
         for j, ss in enumerate(traffic_ss.spawn(plan.n_traffic)):
@@ -365,7 +359,7 @@ class MadrasVectorEnv(VectorEnv):
                 i, j = np.argwhere(bad)[0]
                 raise ValueError(f"action for episode {slots[i]} has a non-finite value at "
                                  f"index {j}: {chosen[i, j]}")
-            chosen = np.minimum(self._high, np.maximum(self._low, chosen))
+            chosen = self._actions.clip(chosen)
             infos = self._step_slots(slots, chosen, rewards, terminated, truncated)
         if resetting.any() and self.autoreset_mode == AutoresetMode.NEXT_STEP:
             infos = self._merge(infos, self._reset_slots(np.flatnonzero(resetting),
@@ -386,25 +380,7 @@ class MadrasVectorEnv(VectorEnv):
         u, flat, hits = batch.controls, batch.sensors, batch.hits
         if self._scalar:
             checked = chosen.tolist()       # what MadrasCore hands to rewards and dones
-        noisy = np.flatnonzero(self._noise_std[slots] > 0.0)
-        if noisy.size:
-            noise = np.zeros_like(chosen)
-            for i in noisy.tolist():
-                e = slots[i]
-                noise[i] = self._action_rng[e].normal(0.0, self._noise_std[e], self._dim)
-            moved = chosen[noisy] + noise[noisy]
-            chosen[noisy] = np.minimum(self._high, np.maximum(self._low, moved))
-        if self._manual:
-            g = chosen[:, -1]
-            # Python's round() and np.round both round halves to even
-            self._gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self._normalised else g)
-        if self._ts:
-            self._pid.set_action(slots, chosen)
-        elif self._normalised:
-            self._sab[slots] = np.stack([chosen[:, 0], (chosen[:, 1] + 1.0) / 2.0,
-                                         (chosen[:, 2] + 1.0) / 2.0], axis=1)
-        else:
-            self._sab[slots] = chosen[:, :3]
+        self._actions.begin(slots, chosen, [self._action_rng[e] for e in slots.tolist()])
         m = slots.shape[0]
         total = np.zeros(m)
         terms = None
@@ -418,11 +394,7 @@ class MadrasVectorEnv(VectorEnv):
             run = slots[running]
             rows = self._row[run]
             prev = flat[rows]
-            if self._ts:
-                u[rows, 0], u[rows, 1], u[rows, 2] = self._pid.act(run, prev)
-            else:
-                u[rows, :3] = self._sab[run]
-            u[rows, 3] = self._gear[run] if self._manual else speed_gear_many(prev[:, O_SX])
+            u[rows, :4] = self._actions.controls(run, prev)
             if traffic:
                 self._traffic_controls(run)
             mask[:] = False
