@@ -173,12 +173,11 @@ class TrafficBehaviour:
         if self._fleet is not self._own:          # driven in a batch until now: take it back
             self._unbind()
         sens = self._sens
-        for name in _READ:
-            o, w = SENSOR_OFFSETS[name]
-            if w == 1:
-                sens[0, o] = row[name]
-            else:
-                sens[0, o:o + w] = row[name]
+        for name in _READ if self._kind != tk.K_USER else SENSOR_OFFSETS:   # target sees all
+            value = row[name] if name in _READ else row.get(name)
+            if value is not None:
+                o, w = SENSOR_OFFSETS[name]
+                sens[0, o:o + w] = value
         self._own.act(sens, self._ctrl, self._rows)
         steer, accel, brake, gear = self._ctrl[0].tolist()
         return steer, accel, brake, int(gear)
