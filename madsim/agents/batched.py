@@ -14,11 +14,10 @@ from typing import Any
 import numpy as np
 
 from madsim.agents import component_kernel as ck
+from madsim.agents.action_kernel import fill_controls, speed_gears, take_actions
 from madsim.agents.pid import (
     CTRL_STATE,
-    SPEED_GEAR_KMH,
     PIDController,
-    desired_lane_speed,
     observe,
     ts_act,
 )
@@ -29,10 +28,9 @@ from madsim.physics.sensors import N_VALUES, O_ANGLE, O_SX, O_TPOS, SENSOR_OFFSE
 
 def speed_gear_many(speed_kmh: np.ndarray) -> np.ndarray:
     """madsim.agents.pid.speed_gear over an array (float gears)."""
-    gear = np.ones(speed_kmh.shape)
-    for threshold in SPEED_GEAR_KMH:
-        gear += speed_kmh > threshold
-    return gear
+    out = np.empty(speed_kmh.shape[0])
+    speed_gears(np.ascontiguousarray(speed_kmh, dtype=np.float64), out)
+    return out
 
 
 # --- rewards and dones over many slots -----------------------------------------------------------
@@ -148,9 +146,8 @@ class BatchedTS:
 
     def set_action(self, slots, action) -> None:
         """Take the T-S actions (m, 2) of slots (m,)."""
-        self.lane_des[slots], self.speed_des_kmh[slots] = desired_lane_speed(
-            action[:, 0], action[:, 1], low=self.low, high=self.high, normalised=self.normalised,
-            compat=self.compat, target_speed=self.target_speed[slots])
+        take_actions(slots, action, True, self.normalised, self.compat, self.low, self.high,
+                     self.target_speed, _NO_SAB, self.lane_des, self.speed_des_kmh)
 
     def act(self, slots, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(steer, accel, brake) of the coming tick from the latest sensor rows (m, 79)."""
@@ -160,6 +157,7 @@ class BatchedTS:
         return out[:, 0], out[:, 1], out[:, 2]
 
 
+_NO_SAB = np.zeros((0, 3))
 _STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
 
 
@@ -180,7 +178,9 @@ class ActionMap:
         self.dim = self.low.shape[0]
         self.ts, self.normalised, self.manual = ts, normalised, manual
         self.pid = BatchedTS(pid, track_limits, normalised, n) if ts else None
+        self._no_ts = BatchedTS(pid, track_limits, normalised, 0)     # typed stand-in arrays
         self.noise_std = np.zeros(n)
+        self._noisy = False                    # some slot has had noise: look for it
         self.sab = np.tile(_STOP, (n, 1))
         self.gear = np.ones(n)
 
@@ -194,13 +194,14 @@ class ActionMap:
             self.pid.reset(e, row, target_speed)
         self.sab[e] = _STOP
         self.noise_std[e] = noise_std
+        self._noisy |= noise_std > 0.0
 
     def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
         """Take this step's checked actions (m, dim) of slots; rngs: a generator per slot."""
-        noisy = np.flatnonzero(self.noise_std[slots] > 0.0)
-        if noisy.size:
+        noisy = np.flatnonzero(self.noise_std[slots] > 0.0) if self._noisy else ()
+        if len(noisy):
             chosen = chosen.copy()
-            for i in noisy.tolist():
+            for i in noisy.tolist():                            # in slot order
                 e = slots[i]
                 noise = rngs[i].normal(0.0, self.noise_std[e], self.dim)
                 chosen[i] = self.clip(chosen[i] + noise)
@@ -208,21 +209,15 @@ class ActionMap:
             g = chosen[:, -1]
             # Python's round() and np.round both round halves to even
             self.gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self.normalised else g)
-        if self.ts:
-            self.pid.set_action(slots, chosen)
-        elif self.normalised:
-            self.sab[slots] = np.stack([chosen[:, 0], (chosen[:, 1] + 1.0) / 2.0,
-                                        (chosen[:, 2] + 1.0) / 2.0], axis=1)
-        else:
-            self.sab[slots] = chosen[:, :3]
+        ts = self.pid if self.ts else self._no_ts
+        take_actions(slots, chosen, self.ts, self.normalised, ts.compat, ts.low, ts.high,
+                     ts.target_speed, self.sab, ts.lane_des, ts.speed_des_kmh)
 
     def controls(self, slots: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Controls (m, 4: steer, accel, brake, gear) of the coming tick for slots from their
         latest sensor rows (m, 79)."""
         out = np.empty((slots.shape[0], 4))
-        if self.ts:
-            out[:, 0], out[:, 1], out[:, 2] = self.pid.act(slots, rows)
-        else:
-            out[:, :3] = self.sab[slots]
-        out[:, 3] = self.gear[slots] if self.manual else speed_gear_many(rows[:, O_SX])
+        ts = self.pid if self.ts else self._no_ts
+        fill_controls(slots, rows, self.ts, self.manual, self.sab, self.gear, ts.state, ts.params,
+                      ts.fresh, ts.lane_des, ts.speed_des_kmh, out)
         return out

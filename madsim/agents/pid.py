@@ -53,6 +53,7 @@ _GEAR_UP_RPM = (5000.0, 6000.0, 6000.0, 6500.0, 7000.0)
 _GEAR_DOWN_RPM = (2500.0, 3000.0, 3000.0, 3500.0, 3500.0)
 
 
+@njit(cache=True)
 def speed_gear(speed_kmh: float) -> int:
     """MADRaS's (snakeoil's) gear for a forward speed in km/h: 1 up to 50, 2 above 50, 3 above
     80, 4 above 110, 5 above 140, 6 above 170."""
@@ -250,11 +251,11 @@ class PIDController:
         return pid_controls(self.state, 0, self.params, 0, float(lane_des), float(speed_des_kmh))
 
 
-def desired_lane_speed(a0, a1, *, low: float, high: float, normalised: bool, compat: bool,
-                       target_speed):
-    """(lane in trackPos units, speed in km/h) of T-S actions (floats or arrays): normalised,
-    lane = low + (high - low) (a0 + 1) / 2 (MADRaS master: low + (high - low) a0, spec 6.2,
-    bug 15) and speed = a1 * target_speed (m/s) in km/h; else a0, a1 as they are."""
+@njit(cache=True)
+def desired_lane_speed(a0, a1, low, high, normalised, compat, target_speed):
+    """(lane in trackPos units, speed in km/h) of a T-S action: normalised, lane = low +
+    (high - low) (a0 + 1) / 2 (MADRaS master: low + (high - low) a0, spec 6.2, bug 15) and
+    speed = a1 * target_speed (m/s) in km/h; else a0, a1 as they are."""
     if not normalised:
         return a0, a1
     span = high - low
@@ -286,9 +287,8 @@ class TrackSpeedController:
     def desired(self, action: Sequence[float]) -> tuple[float, float]:
         """(lane in trackPos units, speed in km/h) for a T-S action."""
         low, high = self.track_limits
-        return desired_lane_speed(float(action[0]), float(action[1]), low=low, high=high,
-                                  normalised=self.normalised, compat=self.pid.compat,
-                                  target_speed=self.target_speed)
+        return desired_lane_speed(float(action[0]), float(action[1]), low, high,
+                                  self.normalised, self.pid.compat, self.target_speed)
 
     def set_action(self, action: Sequence[float]) -> None:
         """Take a new T-S action; it holds until the next call."""
