@@ -128,9 +128,8 @@ class TurnBackward(_Reward):
 
 class AngularAcceleration(_Reward):
     """|a_t + a_{t-2} - 2 a_{t-1}| / max_ang_accl over the last three angles (rad, one per
-    tick; the paper's alpha_reference = max_ang_accl), angle differences wrapped to (-pi, pi].
-    Below `threshold` (rad per tick^2) it is 0; MADRaS's code used threshold = max_ang_accl,
-    which almost never fires. The history starts from the first observation."""
+    tick; the paper's alpha_reference = max_ang_accl). Below `threshold` (rad per tick^2) it is
+    0; MADRaS's code used threshold = max_ang_accl, which almost never fires."""
 
     kind = "penalty"
     code = ck.C_ANG_ACCEL

@@ -20,7 +20,11 @@ Traffic behaviours come from `madsim.agents.traffic` (looked up when a config ca
 traffic) or from the `traffic_factory` hook: a callable `factory(entry: TrafficConfig)` ->
 an object with `reset(rng, info)` (rng: numpy Generator; info: track_length m, track_width m,
 index, row, car, placement (s m, n m), tick_s) and `act(row) -> (steer, accel, brake, gear)`,
-row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`).
+row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`). Every tick one
+`TrafficFleet` call drives them all (the built-in behaviours compiled, other objects by `act`).
+
+Each agent's action mapping, T-S controller, rewards and dones are the batch-first code of
+`madsim.agents.batched` (what make_vec runs over its episodes), here a batch of one per agent.
 """
 
 from __future__ import annotations
@@ -123,7 +127,6 @@ class _Driver:
         self.done_components = [c for _, c in dones]
         self.dones = ComponentBatch(self.done_components, 1)
         self._length = np.zeros(1)
-        self.ticks = agent.pid.latency if self.ts else 1
 
     def check(self, action) -> list[float]:
         """The action as a list of floats clipped into the Box; ValueError if malformed."""
