@@ -197,13 +197,13 @@ class ActionMap:
         self._noisy |= noise_std > 0.0
 
     def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
-        """Take this step's checked actions (m, dim) of slots; rngs: a generator per slot."""
+        """Take this step's checked actions (m, dim) of slots; rngs[e]: slot e's generator."""
         noisy = np.flatnonzero(self.noise_std[slots] > 0.0) if self._noisy else ()
         if len(noisy):
             chosen = chosen.copy()
             for i in noisy.tolist():                            # in slot order
                 e = slots[i]
-                noise = rngs[i].normal(0.0, self.noise_std[e], self.dim)
+                noise = rngs[e].normal(0.0, self.noise_std[e], self.dim)
                 chosen[i] = self.clip(chosen[i] + noise)
         if self.manual:
             g = chosen[:, -1]

@@ -42,60 +42,59 @@ def evaluate(codes, par, state, slots, prev, cur, length, collision, out):
             continue
         for i in range(slots.shape[0]):
             e = slots[i]
-            p, s = par[c, e], state[c, e]
             d = cur[i, O_DRACED] - prev[i, O_DRACED]
             hit = collision[i] or cur[i, O_DAMAGE] > prev[i, O_DAMAGE]
             v = 0.0
             if code == C_PROGRESS:
                 v = d / length[i]
             elif code == C_PROGRESS2:
-                v = min(1.0, d / p[0])
+                v = min(1.0, d / par[c, e, 0])
             elif code == C_PROGRESS3:
-                v = d / p[0]
+                v = d / par[c, e, 0]
             elif code == C_AVG_SPEED:           # s: ticks since the last paid lap, laps paid
-                s[0] += 1.0
-                if not cur[i, O_DRACED] < (s[1] + 1.0) * length[i]:
-                    s[1] += 1.0
-                    avg_speed = length[i] / (s[0] * TICK_S)
-                    s[0] = 0.0
-                    v = avg_speed / p[0]
+                state[c, e, 0] += 1.0
+                if not cur[i, O_DRACED] < (state[c, e, 1] + 1.0) * length[i]:
+                    state[c, e, 1] += 1.0
+                    avg_speed = length[i] / (state[c, e, 0] * TICK_S)
+                    state[c, e, 0] = 0.0
+                    v = avg_speed / par[c, e, 0]
             elif code == C_COLLISION or code == C_COLLISION_DONE:
                 v = 1.0 if hit else 0.0
             elif code == C_TURN_BACKWARD or code == C_TURN_BACKWARD_DONE:
                 v = 1.0 if math.cos(cur[i, O_ANGLE]) < 0.0 else 0.0
             elif code == C_ANG_ACCEL:           # s: a_{t-2}, a_{t-1}, fresh
-                if s[2] != 0.0:
-                    s[0] = s[1] = prev[i, O_ANGLE]
-                    s[2] = 0.0
-                a0, a1, a2 = s[0], s[1], cur[i, O_ANGLE]
-                s[0], s[1] = a1, a2
+                if state[c, e, 2] != 0.0:
+                    state[c, e, 0] = state[c, e, 1] = prev[i, O_ANGLE]
+                    state[c, e, 2] = 0.0
+                a0, a1, a2 = state[c, e, 0], state[c, e, 1], cur[i, O_ANGLE]
+                state[c, e, 0], state[c, e, 1] = a1, a2
                 acc = abs(_wrap(a2 - a1) - _wrap(a1 - a0))
-                v = acc / p[0] if acc > p[1] else 0.0
+                v = acc / par[c, e, 0] if acc > par[c, e, 1] else 0.0
             elif code == C_OVERTAKE:            # s: best position so far, fresh
-                if s[1] != 0.0:
-                    s[0] = prev[i, O_RACEPOS]
-                    s[1] = 0.0
-                gained = s[0] - cur[i, O_RACEPOS]
+                if state[c, e, 1] != 0.0:
+                    state[c, e, 0] = prev[i, O_RACEPOS]
+                    state[c, e, 1] = 0.0
+                gained = state[c, e, 0] - cur[i, O_RACEPOS]
                 if gained > 0:
-                    s[0] = cur[i, O_RACEPOS]
+                    state[c, e, 0] = cur[i, O_RACEPOS]
                     v = gained
             elif code == C_RANK_ONE or code == C_RANK1:
                 v = 1.0 if cur[i, O_RACEPOS] == 1.0 else 0.0
             elif code == C_TASK:                # s: paid
-                if not (s[0] != 0.0 or cur[i, O_RACEPOS] > p[0]):
-                    s[0] = 1.0
-                    v = p[1]
+                if not (state[c, e, 0] != 0.0 or cur[i, O_RACEPOS] > par[c, e, 0]):
+                    state[c, e, 0] = 1.0
+                    v = par[c, e, 1]
             elif code == C_RACE_OVER:
-                v = 1.0 if cur[i, O_DRACED] >= p[0] * length[i] else 0.0
+                v = 1.0 if cur[i, O_DRACED] >= par[c, e, 0] * length[i] else 0.0
             elif code == C_LAP_COMPLETED:
                 last = cur[i, O_LASTLAP]
                 v = 1.0 if last > 0.0 and last != prev[i, O_LASTLAP] else 0.0
             elif code == C_TIME_OUT:            # s: ticks since reset
-                s[0] += 1.0
-                v = 1.0 if s[0] >= p[0] else 0.0
+                state[c, e, 0] += 1.0
+                v = 1.0 if state[c, e, 0] >= par[c, e, 0] else 0.0
             elif code == C_OUT_OF_TRACK:
                 pos = cur[i, O_TPOS]
-                off = pos < p[0] or pos > p[1]
+                off = pos < par[c, e, 0] or pos > par[c, e, 1]
                 for j in range(19):
                     if cur[i, O_TRACK + j] < 0.0:
                         off = True

@@ -380,7 +380,7 @@ class MadrasVectorEnv(VectorEnv):
         u, flat, hits = batch.controls, batch.sensors, batch.hits
         if self._scalar:
             checked = chosen.tolist()       # what MadrasCore hands to rewards and dones
-        self._actions.begin(slots, chosen, [self._action_rng[e] for e in slots.tolist()])
+        self._actions.begin(slots, chosen, self._action_rng)
         m = slots.shape[0]
         total = np.zeros(m)
         terms = None
