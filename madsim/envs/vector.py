@@ -14,9 +14,10 @@ random streams, curriculum stage and autoreset, and everything it returns is bit
 phase finds something near).
 
 Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
-Speed (benchmarks/bench_vector.py): ~100,000 env-steps/s from N = 64 up on one core of this
-project's 2-core machine, most of it physics; for a single episode `MadrasEnv` is faster (the
-numpy bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
+Speed (benchmarks/bench_vector.py, per CPU-second of one core of this project's 2-core
+machine): ~120,000 env-steps/s at N = 1024, ~28,000 with four traffic cars per episode, most of
+it physics; for a single episode `MadrasEnv` is faster (the numpy bookkeeping costs ~150 us per
+step whatever N). threads=True shares the compiled part
 among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
 Not supported: scenarios with more than one learning agent or with communication (ConfigError);
 rendering.
