@@ -236,10 +236,13 @@ class TrafficBehaviour:
 
     def _bind(self, fleet: TrafficFleet, r: int) -> None:
         """Move this car's state to row r of `fleet` (called by fleet.put)."""
+        if fleet is not self._own and type(self).act is not TrafficBehaviour.act:
+            fleet.kind[r] = tk.K_FOREIGN        # it overrides act: a batch calls that
+            return
+        fleet.kind[r] = self._kind
         if fleet is not self._own:
             for a in ("S", "P", "lanes", "rand"):
                 getattr(fleet, a)[r] = getattr(self._own, a)[0]
-        fleet.kind[r] = self._kind
         self._fleet, self._r = fleet, r
 
     def _unbind(self) -> None:

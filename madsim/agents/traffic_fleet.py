@@ -35,15 +35,15 @@ class TrafficFleet:
         self._random = np.zeros(n, dtype=bool)     # rows that draw while they drive
         self._n_python = 0                          # rows of K_USER or K_FOREIGN
 
-    def clear(self, rows) -> None:
-        """Remove the cars of `rows` (a slice or index array)."""
-        idx = np.arange(self.n)[rows]
-        for r in idx.tolist():
-            if self.kind[r] in (tk.K_USER, tk.K_FOREIGN):
-                self._n_python -= 1
-            self.objects[r] = None
-        self.kind[idx] = tk.K_NONE
-        self._random[idx] = False
+    def clear(self, rows: slice) -> None:
+        """Remove the cars of `rows`."""
+        for r in range(self.n)[rows]:
+            if self.objects[r] is not None:
+                if self.kind[r] in (tk.K_USER, tk.K_FOREIGN):
+                    self._n_python -= 1
+                self.objects[r] = None
+        self.kind[rows] = tk.K_NONE
+        self._random[rows] = False
 
     def put(self, r: int, obj) -> None:
         """Drive row r with `obj` (a reset TrafficBehaviour, or any object with act(row))."""

@@ -563,6 +563,14 @@ class Weaving(TrafficBehaviour):
         return (0.5 if int(t_s / 2.0) % 2 else -0.5), 9.0
 
 
+class Gentle(ConstVel):
+    """A behaviour that overrides act (and drives through the built-in one): throttle <= 0.3."""
+
+    def act(self, row):
+        steer, accel, brake, gear = super().act(row)
+        return steer, min(accel, 0.3), brake, gear
+
+
 class Foreign:
     """A traffic_factory object that is no TrafficBehaviour: creeps straight on."""
 
@@ -578,8 +586,8 @@ def _episode(seed: int):
     track = load_track("madsim-street")
     rng = np.random.default_rng(seed)
     used, pl = draw_traffic_placements(cfg.traffic, cfg.server.traffic_count, rng, track)
-    behaviours = [make_behaviour(e) for e in used] + [Weaving(), Foreign()]
-    pl = np.vstack([pl, [[420.0, 0.0, 0.0], [470.0, 0.0, 0.0]]])
+    behaviours = [make_behaviour(e) for e in used] + [Weaving(), Foreign(), Gentle(lane=-0.6)]
+    pl = np.vstack([pl, [[420.0, 0.0, 0.0], [470.0, 0.0, 0.0], [520.0, -1.5, 0.0]]])
     world = World(track, [load_car(cfg.server.traffic_car)] * len(behaviours),
                   np.random.default_rng(seed))
     world.reset(pl)
@@ -593,8 +601,8 @@ def _episode(seed: int):
 
 
 def test_a_fleet_drives_every_car_bit_identically_to_each_behaviour_alone():
-    """8 mixed built-in cars (lane switches, random stops, parking), a user behaviour and a
-    foreign object: one fleet call per tick == one act per car, for 20 s (the random draws
+    """8 mixed built-in cars (lane switches, random stops, parking), a user behaviour, one that
+    overrides act and a foreign object: one fleet call per tick == one act per car, for 20 s (the random draws
     of RandomStopping cross several 64-draw refills)."""
     ticks = 1000
     world, suite, behaviours, infos_a = _episode(3)
