@@ -34,13 +34,13 @@ class TrafficFleet:
         self.objects: list = [None] * n
         self._random = np.zeros(n, dtype=bool)     # rows that draw while they drive
         self._n_python = 0                          # rows of K_USER or K_FOREIGN
+        self._n_events = 0                          # rows that may report an event
 
     def clear(self, rows: slice) -> None:
         """Remove the cars of `rows`."""
         for r in range(self.n)[rows]:
             if self.objects[r] is not None:
-                if self.kind[r] in (tk.K_USER, tk.K_FOREIGN):
-                    self._n_python -= 1
+                self._count(r, -1)
                 self.objects[r] = None
         self.kind[rows] = tk.K_NONE
         self._random[rows] = False
@@ -53,20 +53,25 @@ class TrafficFleet:
             bind(self, r)
         else:
             self.kind[r] = tk.K_FOREIGN
-        if self.kind[r] in (tk.K_USER, tk.K_FOREIGN):
-            self._n_python += 1
         self._random[r] = self.kind[r] in (tk.K_LANE_SWITCH, tk.K_STOPPING)
+        self._count(r, +1)
         self.objects[r] = obj
+
+    def _count(self, r: int, sign: int) -> None:
+        kind = self.kind[r]
+        self._n_python += sign * (kind in (tk.K_USER, tk.K_FOREIGN))
+        self._n_events += sign * (kind in (tk.K_USER, tk.K_LANE_SWITCH, tk.K_STOPPING))
 
     def act(self, sensors: np.ndarray, controls: np.ndarray, rows: np.ndarray) -> None:
         """Controls (steer, accel, brake, gear) of `rows` for the coming tick into
         controls[rows, :4], from sensors (n, 79) float64 in wire order."""
-        if self._random.any():
+        if self._n_events:
             self._refill()
         tk.traffic_tick(sensors, controls, rows, self.kind, self.S, self.P, self.lanes, self.rand)
-        events = self.S[rows, tk.EVENT]
-        if events.any():
-            self._events(sensors, controls, rows[events != 0.0])
+        if self._n_events:
+            events = self.S[rows, tk.EVENT]
+            if events.any():
+                self._events(sensors, controls, rows[events != 0.0])
         if self._n_python:
             for r in rows[self.kind[rows] == tk.K_FOREIGN].tolist():
                 steer, accel, brake, gear = self.objects[r].act(SensorRow(sensors[r]))
