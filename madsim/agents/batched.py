@@ -1,339 +1,223 @@
-"""Agent components over many episodes at once, for the batched vector env.
+"""Agent components over many slots at once (episodes of make_vec, agents of one episode).
 
-Each class mirrors one component of `madsim.agents.rewards` / `dones` / `pid` float for float
-(the vector env's tests compare against separate MadrasEnvs bit for bit): per-episode parameters
-are copied from the scalar component built for the episode's curriculum stage, per-episode state
-lives in (n,) arrays indexed by episode slot. Rows are (m, 79) SCR sensor rows in wire order.
+Rewards and dones: `ComponentBatch` evaluates a set of them (the built-ins compiled, see
+`Builtin`); the T-S controller over episodes: `BatchedTS`. Rows are (m, 79) SCR sensor rows in
+wire order, per-slot state lives in arrays indexed by slot.
 """
 
 from __future__ import annotations
 
-import math
+import copy
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from madsim.agents import dones as D
-from madsim.agents import rewards as R
-from madsim.agents.pid import SPEED_UNIT_KMH, PIDController
-from madsim.physics.sensors import (
-    O_ANGLE,
-    O_DAMAGE,
-    O_DRACED,
-    O_LASTLAP,
-    O_RACEPOS,
-    O_SX,
-    O_TPOS,
-    O_TRACK,
+from madsim.agents import component_kernel as ck
+from madsim.agents.action_kernel import fill_controls, speed_gears, take_actions
+from madsim.agents.pid import (
+    CTRL_STATE,
+    PIDController,
+    observe,
+    ts_act,
 )
+from madsim.agents.sensor_row import SensorRow
+from madsim.physics.sensors import N_VALUES, O_ANGLE, O_SX, O_TPOS, SENSOR_OFFSETS
 
-TICK_S = R.TICK_S
-
-_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)     # madsim.agents.pid.speed_gear's thresholds
 
 
 def speed_gear_many(speed_kmh: np.ndarray) -> np.ndarray:
     """madsim.agents.pid.speed_gear over an array (float gears)."""
-    gear = np.ones(speed_kmh.shape)
-    for threshold in _GEAR_KMH:
-        gear += speed_kmh > threshold
-    return gear
+    out = np.empty(speed_kmh.shape[0])
+    speed_gears(np.ascontiguousarray(speed_kmh, dtype=np.float64), out)
+    return out
 
 
-# --- rewards and dones over many episodes ------------------------------------------------------
-# Each mirrors one component of madsim.agents.rewards / dones, float for float: per-episode
-# parameters are copied from the component object built for the episode's stage, per-episode
-# state lives in (n,) arrays. Call: (slots, prev, cur, length, collision) with prev, cur (m, 79)
-# sensor rows of the learners, length (m,) track lengths m, collision (m,) bool.
+# --- rewards and dones over many slots -----------------------------------------------------------
 
 
-class Batched:
-    params: tuple[str, ...] = ()
+class Builtin:
+    """A built-in reward or done: its formula is compiled (madsim.agents.component_kernel,
+    selected by `code`); the object holds the configured parameters. Calling it with one car's
+    rows (the component API of madsim.agents.rewards) evaluates a batch of one."""
 
-    def __init__(self, n: int):
-        for p in self.params:
-            setattr(self, p, np.zeros(n))
+    code = 0
+    initial_state = (0.0, 0.0, 0.0)
+    _cast = float
 
-    def start(self, e: int, comp, length: float) -> None:
-        for p in self.params:
-            getattr(self, p)[e] = getattr(comp, p)
+    def kernel_params(self, length: float) -> tuple:
+        """The kernel's per-slot parameters for an episode on a track of `length` m."""
+        return ()
+
+    def reset(self) -> None:
+        self._one = None
+
+    def __call__(self, prev: Mapping, cur: Mapping, action: Any, info: Mapping):
+        length = float(info["track_length"])
+        one = getattr(self, "_one", None)
+        if one is None:
+            one = self._one = ComponentBatch([self], 1)
+            one.start(0, [self], length)
+        rows = np.zeros((2, N_VALUES))
+        for k, row in enumerate((prev, cur)):
+            for name, (o, w) in SENSOR_OFFSETS.items():
+                if name in row:
+                    rows[k, o:o + w] = row[name]
+        out = one.evaluate(_SLOT0, rows[:1], rows[1:], np.array([length]),
+                           np.array([bool(info.get("collision", False))]))
+        return self._cast(out[0, 0])
 
 
-class _Progress(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_DRACED] - prev[:, O_DRACED]) / length
+_SLOT0 = np.zeros(1, dtype=np.int64)
 
 
-class _Progress2(Batched):
-    params = ("per_tick",)
+class ComponentBatch:
+    """The components of a reward or done set (built-ins and user-registered Python ones) over
+    n slots (episodes, or the agents of one episode): `start(e, components, length)` at an
+    episode start with the components of e's curriculum stage (same names, same order);
+    `evaluate(slots, prev, cur, length, collision, actions)` -> (components, m) float64 values
+    (dones 1.0 / 0.0) from the rows (m, 79) before and after the tick, length (m,) m and
+    collision (m,) bool. Built-ins take one compiled call; a Python component is one deep copy
+    per slot, called row by row with SensorRows (actions: the slots' checked actions, for them)."""
 
-    def __call__(self, slots, prev, cur, length, collision):
-        return np.minimum(1.0, (cur[:, O_DRACED] - prev[:, O_DRACED]) / self.per_tick[slots])
+    def __init__(self, components, n: int):
+        k = len(components)
+        self.codes = np.array([c.code if isinstance(c, Builtin) else 0 for c in components],
+                              dtype=np.int64)
+        self.par = np.zeros((k, n, ck.NPAR))
+        self.state = np.zeros((k, n, ck.NSTATE))
+        self.python = [i for i, code in enumerate(self.codes.tolist()) if code == 0]
+        self.objects = {i: [None] * n for i in self.python}
 
+    def start(self, e: int, components, length: float) -> None:
+        for i, c in enumerate(components):
+            if i in self.objects:
+                obj = copy.deepcopy(c)
+                obj.reset()
+                self.objects[i][e] = obj
+            else:
+                p = c.kernel_params(length)
+                self.par[i, e, :len(p)] = p
+                self.state[i, e] = c.initial_state
 
-class _Progress3(_Progress2):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_DRACED] - prev[:, O_DRACED]) / self.per_tick[slots]
-
-
-class _AvgSpeed(Batched):
-    params = ("target_speed",)
-
-    def __init__(self, n):
-        super().__init__(n)
-        self.ticks = np.zeros(n, dtype=np.int64)
-        self.laps_paid = np.zeros(n, dtype=np.int64)
-
-    def start(self, e, comp, length):
-        super().start(e, comp, length)
-        self.ticks[e] = self.laps_paid[e] = 0
-
-    def __call__(self, slots, prev, cur, length, collision):
-        self.ticks[slots] += 1
-        out = np.zeros(slots.shape[0])
-        pay = ~(cur[:, O_DRACED] < (self.laps_paid[slots] + 1) * length)
-        if pay.any():
-            e = slots[pay]
-            self.laps_paid[e] += 1
-            avg_speed = length[pay] / (self.ticks[e] * TICK_S)
-            self.ticks[e] = 0
-            out[pay] = avg_speed / self.target_speed[e]
+    def evaluate(self, slots, prev, cur, length, collision, actions=None) -> np.ndarray:
+        out = np.zeros((self.codes.shape[0], slots.shape[0]))
+        ck.evaluate(self.codes, self.par, self.state, slots, prev, cur, length, collision, out)
+        for i in self.python:
+            objects = self.objects[i]
+            for j, e in enumerate(slots.tolist()):
+                info = {"track_length": float(length[j]), "collision": bool(collision[j])}
+                out[i, j] = objects[e](SensorRow(prev[j]), SensorRow(cur[j]),
+                                       None if actions is None else actions[j], info)
         return out
 
 
-def _hit(prev, cur, collision):
-    return collision | (cur[:, O_DAMAGE] > prev[:, O_DAMAGE])
-
-
-class _Collision(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return _hit(prev, cur, collision).astype(np.float64)
-
-
-class _TurnBackward(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (np.cos(cur[:, O_ANGLE]) < 0.0).astype(np.float64)
-
-
-def _wrap(a):
-    return a - 2.0 * math.pi * np.floor((a + math.pi) / (2.0 * math.pi))
-
-
-class _AngularAcceleration(Batched):
-    params = ("reference", "threshold")
-
-    def __init__(self, n):
-        super().__init__(n)
-        self.history = np.zeros((n, 2))
-        self.fresh = np.ones(n, dtype=bool)
-
-    def start(self, e, comp, length):
-        super().start(e, comp, length)
-        self.fresh[e] = True
-
-    def __call__(self, slots, prev, cur, length, collision):
-        fresh = self.fresh[slots]
-        self.history[slots[fresh]] = prev[fresh, O_ANGLE, None]
-        self.fresh[slots] = False
-        a0, a1 = self.history[slots, 0], self.history[slots, 1]
-        a2 = cur[:, O_ANGLE]
-        self.history[slots, 0], self.history[slots, 1] = a1, a2
-        acc = np.abs(_wrap(a2 - a1) - _wrap(a1 - a0))
-        return np.where(acc > self.threshold[slots], acc / self.reference[slots], 0.0)
-
-
-class _SuccessfulOvertake(Batched):
-    def __init__(self, n):
-        super().__init__(n)
-        self.best = np.zeros(n)
-        self.fresh = np.ones(n, dtype=bool)
-
-    def start(self, e, comp, length):
-        self.fresh[e] = True
-
-    def __call__(self, slots, prev, cur, length, collision):
-        fresh = self.fresh[slots]
-        self.best[slots[fresh]] = prev[fresh, O_RACEPOS]
-        self.fresh[slots] = False
-        gained = self.best[slots] - cur[:, O_RACEPOS]
-        up = gained > 0
-        self.best[slots[up]] = cur[up, O_RACEPOS]
-        return np.where(up, gained, 0.0)
-
-
-class _RankOne(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_RACEPOS] == 1.0).astype(np.float64)
-
-
-class _Task(Batched):
-    params = ("position", "bonus")
-
-    def __init__(self, n):
-        super().__init__(n)
-        self.paid = np.zeros(n, dtype=bool)
-
-    def start(self, e, comp, length):
-        super().start(e, comp, length)
-        self.paid[e] = False
-
-    def __call__(self, slots, prev, cur, length, collision):
-        pay = ~(self.paid[slots] | (cur[:, O_RACEPOS] > self.position[slots]))
-        self.paid[slots[pay]] = True
-        return np.where(pay, self.bonus[slots], 0.0)
-
-
-class _RaceOver(Batched):
-    params = ("laps",)
-
-    def __call__(self, slots, prev, cur, length, collision):
-        return cur[:, O_DRACED] >= self.laps[slots] * length
-
-
-class _LapCompleted(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return (cur[:, O_LASTLAP] > 0.0) & (cur[:, O_LASTLAP] != prev[:, O_LASTLAP])
-
-
-class _TimeOut(Batched):
-    def __init__(self, n):
-        super().__init__(n)
-        self.ticks = np.zeros(n, dtype=np.int64)
-        self.limit = np.zeros(n, dtype=np.int64)
-
-    def start(self, e, comp, length):
-        limit = comp.max_steps
-        if limit is None:
-            limit = math.ceil(length / (comp.target_speed * TICK_S))
-        self.limit[e] = limit
-        self.ticks[e] = 0
-
-    def __call__(self, slots, prev, cur, length, collision):
-        self.ticks[slots] += 1
-        return self.ticks[slots] >= self.limit[slots]
-
-
-class _CollisionDone(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return _hit(prev, cur, collision)
-
-
-class _TurnBackwardDone(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return np.cos(cur[:, O_ANGLE]) < 0.0
-
-
-class _OutOfTrack(Batched):
-    params = ("low", "high")
-
-    def __call__(self, slots, prev, cur, length, collision):
-        pos = cur[:, O_TPOS]
-        return ((pos < self.low[slots]) | (pos > self.high[slots])
-                | (cur[:, O_TRACK:O_TRACK + 19].min(axis=1) < 0.0))
-
-
-class _Rank1(Batched):
-    def __call__(self, slots, prev, cur, length, collision):
-        return cur[:, O_RACEPOS] == 1.0
-
-
-BATCHED = {
-    R.Progress: _Progress, R.Progress2: _Progress2, R.Progress3: _Progress3,
-    R.AvgSpeed: _AvgSpeed, R.Collision: _Collision, R.TurnBackward: _TurnBackward,
-    R.AngularAcceleration: _AngularAcceleration, R.SuccessfulOvertake: _SuccessfulOvertake,
-    R.RankOne: _RankOne, R.Task: _Task,
-    D.RaceOver: _RaceOver, D.LapCompleted: _LapCompleted, D.TimeOut: _TimeOut,
-    D.Collision: _CollisionDone, D.TurnBackward: _TurnBackwardDone, D.OutOfTrack: _OutOfTrack,
-    D.Rank1: _Rank1,
-}
-
-
-class BatchedPID:
-    """madsim.agents.pid.PID over episodes: integral, previous error, first-call flag."""
-
-    def __init__(self, pid, n: int):
-        self.kp, self.ki, self.kd = pid.kp, pid.ki, pid.kd
-        self.limits, self.kick_free = pid.limits, pid.kick_free
-        self.integral = np.zeros(n)
-        self.prev = np.zeros(n)
-        self.first = np.ones(n, dtype=bool)
-
-    def reset(self, e: int) -> None:
-        self.integral[e] = self.prev[e] = 0.0
-        self.first[e] = True
-
-    def __call__(self, slots, error):
-        prev = self.prev[slots]
-        if self.kick_free:
-            prev = np.where(self.first[slots], error, prev)
-        self.first[slots] = False
-        derivative = error - prev
-        self.prev[slots] = error
-        held = self.integral[slots]
-        integral = held + error
-        out = self.kp * error + self.ki * integral + self.kd * derivative
-        if self.limits is not None:
-            low, high = self.limits
-            hold = ((out > high) & (error > 0.0)) | ((out < low) & (error < 0.0))
-            if hold.any():
-                integral = np.where(hold, held, integral)
-                held_out = self.kp * error + self.ki * integral + self.kd * derivative
-                out = np.where(hold, held_out, out)
-        self.integral[slots] = integral
-        return out
+def weighted_sum(values: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(total (m,), terms (k, m)) of reward values (k, m) with signed weights (k,) float64,
+    summed in component order (what every env reports)."""
+    terms = np.empty_like(values)
+    total = np.zeros(values.shape[1])
+    ck.weigh(values, weights, terms, total)
+    return total, terms
 
 
 class BatchedTS:
-    """madsim.agents.pid.TrackSpeedController (with its PIDController) over episodes."""
+    """madsim.agents.pid.TrackSpeedController over slots: the same compiled controller
+    (pid.ts_act), per-slot state in arrays."""
 
     def __init__(self, pid: PIDController, track_limits, normalised: bool, n: int):
         self.compat = pid.compat
-        self.accel_pid = BatchedPID(pid.accel_pid, n)
-        self.steer_pid = BatchedPID(pid.steer_pid, n)
-        self.accel_scale, self.steer_scale = pid.accel_scale, pid.steer_scale
+        self.params = pid.params.copy()
+        self.state = np.zeros((n, CTRL_STATE))
         self.low, self.high = float(track_limits[0]), float(track_limits[1])
         self.normalised = normalised
         self.target_speed = np.zeros(n)
         self.lane_des, self.speed_des_kmh = np.zeros(n), np.zeros(n)
-        self.prev_lane, self.prev_angle, self.prev_vel = np.zeros(n), np.zeros(n), np.zeros(n)
         self.fresh = np.ones(n, dtype=bool)
 
     def reset(self, e: int, row: np.ndarray, target_speed: float) -> None:
-        self.accel_pid.reset(e)
-        self.steer_pid.reset(e)
-        self.prev_lane[e] = self.prev_angle[e] = self.prev_vel[e] = 0.0
+        """Start slot e's episode from its first sensor row (79,)."""
+        PIDController.initial_state(self.state[e])
         if not self.compat:
-            self._update(np.array([e]), row[None, :])
+            observe(self.state[e], 0, row[O_TPOS], row[O_ANGLE], row[O_SX])
         self.lane_des[e] = self.speed_des_kmh[e] = 0.0
         self.fresh[e] = True
         self.target_speed[e] = target_speed
 
-    def _update(self, slots, rows) -> None:
-        self.prev_lane[slots] = rows[:, O_TPOS]
-        self.prev_angle[slots] = rows[:, O_ANGLE] / math.pi
-        self.prev_vel[slots] = rows[:, O_SX] / SPEED_UNIT_KMH
-
     def set_action(self, slots, action) -> None:
-        a0, a1 = action[:, 0], action[:, 1]
-        if not self.normalised:
-            self.lane_des[slots], self.speed_des_kmh[slots] = a0, a1
-            return
-        span = self.high - self.low
-        lane = self.low + span * a0 if self.compat else self.low + span * (a0 + 1.0) / 2.0
-        self.lane_des[slots] = lane
-        self.speed_des_kmh[slots] = a1 * self.target_speed[slots] * 3.6
+        """Take the T-S actions (m, 2) of slots (m,)."""
+        take_actions(slots, action, True, self.normalised, self.compat, self.low, self.high,
+                     self.target_speed, _NO_SAB, self.lane_des, self.speed_des_kmh)
 
     def act(self, slots, rows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(steer, accel, brake) of the coming tick from the latest sensor rows (m, 79)."""
-        update = ~self.fresh[slots] if self.compat else np.ones(slots.shape[0], dtype=bool)
-        self._update(slots[update], rows[update])
-        self.fresh[slots] = False
-        lane_error = self.prev_lane[slots] - self.lane_des[slots]
-        steer_error = self.prev_angle[slots] - lane_error * self.steer_scale
-        speed_error = self.speed_des_kmh[slots] / SPEED_UNIT_KMH - self.prev_vel[slots]
-        accel_error = speed_error * self.accel_scale
-        steer = self.steer_pid(slots, steer_error)
-        accel = self.accel_pid(slots, accel_error)
-        if self.compat:
-            return steer, accel, np.where(accel < 0.0, 1.0, 0.0)
-        return (np.minimum(1.0, np.maximum(-1.0, steer)), np.minimum(1.0, np.maximum(0.0, accel)),
-                np.minimum(1.0, np.maximum(0.0, -accel)))
+        out = np.empty((slots.shape[0], 3))
+        ts_act(self.state, self.params, self.fresh, self.lane_des, self.speed_des_kmh, slots,
+               rows, out)
+        return out[:, 0], out[:, 1], out[:, 2]
+
+
+_NO_SAB = np.zeros((0, 3))
+_STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
+
+
+class ActionMap:
+    """A learner's actions over slots -> the controls of every tick of the step.
+
+    low, high (dim,): the action Box; ts: T-S actions through `BatchedTS` (pid: its
+    PIDController, track_limits), else S-A-B (normalised: accel and brake from [-1, 1]);
+    manual: the last action component is the gear. Per step: `begin(slots, actions, rngs)`
+    (checked actions (m, dim); Gaussian noise of each slot's std from its generator, clipped
+    again), then per tick `controls(slots, rows)` from the latest sensor rows (m, 79).
+    """
+
+    def __init__(self, low, high, *, ts: bool, normalised: bool, manual: bool, pid, track_limits,
+                 n: int):
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        self.dim = self.low.shape[0]
+        self.ts, self.normalised, self.manual = ts, normalised, manual
+        self.pid = BatchedTS(pid, track_limits, normalised, n) if ts else None
+        self._no_ts = BatchedTS(pid, track_limits, normalised, 0)     # typed stand-in arrays
+        self.noise_std = np.zeros(n)
+        self._noisy = False                    # some slot has had noise: look for it
+        self.sab = np.tile(_STOP, (n, 1))
+        self.gear = np.ones(n)
+
+    def clip(self, actions: np.ndarray) -> np.ndarray:
+        """Actions (m, dim) clipped into the Box."""
+        return np.minimum(self.high, np.maximum(self.low, actions))
+
+    def start(self, e: int, row: np.ndarray, target_speed: float, noise_std: float) -> None:
+        """Slot e's episode starts: first sensor row (79,), target speed m/s, noise std."""
+        if self.pid is not None:
+            self.pid.reset(e, row, target_speed)
+        self.sab[e] = _STOP
+        self.noise_std[e] = noise_std
+        self._noisy |= noise_std > 0.0
+
+    def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
+        """Take this step's checked actions (m, dim) of slots; rngs[e]: slot e's generator."""
+        noisy = np.flatnonzero(self.noise_std[slots] > 0.0) if self._noisy else ()
+        if len(noisy):
+            chosen = chosen.copy()
+            for i in noisy.tolist():                            # in slot order
+                e = slots[i]
+                noise = rngs[e].normal(0.0, self.noise_std[e], self.dim)
+                chosen[i] = self.clip(chosen[i] + noise)
+        if self.manual:
+            g = chosen[:, -1]
+            # Python's round() and np.round both round halves to even
+            self.gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self.normalised else g)
+        ts = self.pid if self.ts else self._no_ts
+        take_actions(slots, chosen, self.ts, self.normalised, ts.compat, ts.low, ts.high,
+                     ts.target_speed, self.sab, ts.lane_des, ts.speed_des_kmh)
+
+    def controls(self, slots: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Controls (m, 4: steer, accel, brake, gear) of the coming tick for slots from their
+        latest sensor rows (m, 79)."""
+        out = np.empty((slots.shape[0], 4))
+        ts = self.pid if self.ts else self._no_ts
+        fill_controls(slots, rows, self.ts, self.manual, self.sab, self.gear, ts.state, ts.params,
+                      ts.fresh, ts.lane_des, ts.speed_des_kmh, out)
+        return out

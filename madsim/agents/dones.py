@@ -6,6 +6,9 @@ Same calling convention as `madsim.agents.rewards`: `reset()`, then one call per
 `truncation = True` (TimeOut) ends the episode by time limit, not by a terminal state.
 `DoneSet` evaluates all of them every tick: the episode ends when any fires.
 
+The built-ins are compiled and batch-first like the rewards (madsim.agents.rewards); one
+registered with `register_done` is plain Python.
+
 Fixes (spec section 11, item 17): Collision compares damage with the previous tick (MADRaS
 kept a stale baseline, so after one hit every later tick, or episode, was "done").
 """
@@ -17,6 +20,8 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from madsim.agents import component_kernel as ck
+from madsim.agents.batched import Builtin
 from madsim.agents.registry import registrar
 from madsim.agents.rewards import TICK_S
 
@@ -37,75 +42,79 @@ class DoneComponent:
         raise NotImplementedError
 
 
-class RaceOver(DoneComponent):
+class _Done(Builtin, DoneComponent):
+    """A built-in done: compiled over many slots (madsim.agents.component_kernel)."""
+
+    _cast = bool
+
+
+class RaceOver(_Done):
     """The race distance is covered: distRaced >= laps * track length."""
+
+    code = ck.C_RACE_OVER
 
     def __init__(self, *, laps: int = 1):
         self.laps = laps
+        self.reset()
 
-    def __call__(self, prev, cur, action, info):
-        return cur["distRaced"] >= self.laps * info["track_length"]
+    def kernel_params(self, length):
+        return (float(self.laps),)
 
 
-class LapCompleted(DoneComponent):
+class LapCompleted(_Done):
     """A lap was timed on this tick: lastLapTime changed to a positive value."""
 
-    def __call__(self, prev, cur, action, info):
-        return cur["lastLapTime"] > 0.0 and cur["lastLapTime"] != prev["lastLapTime"]
+    code = ck.C_LAP_COMPLETED
 
 
-class TimeOut(DoneComponent):
+class TimeOut(_Done):
     """`max_steps` ticks since reset. max_steps None: the ticks one lap takes at the target
     speed, ceil(L / (target_speed * 0.02 s)) (MADRaS's rule for a missing max_steps)."""
 
     truncation = True
+    code = ck.C_TIME_OUT
 
     def __init__(self, *, max_steps: int | None = None, target_speed: float = 15.0):
         self.max_steps = max_steps
         self.target_speed = target_speed
         self.reset()
 
-    def reset(self):
-        self.ticks = 0
-
-    def __call__(self, prev, cur, action, info):
-        self.ticks += 1
+    def kernel_params(self, length):
         limit = self.max_steps
         if limit is None:
-            limit = math.ceil(info["track_length"] / (self.target_speed * TICK_S))
-        return self.ticks >= limit
+            limit = math.ceil(length / (self.target_speed * TICK_S))
+        return (float(limit),)
 
 
-class Collision(DoneComponent):
+class Collision(_Done):
     """Damage rose during the tick, or the env reports a contact."""
 
-    def __call__(self, prev, cur, action, info):
-        return bool(info.get("collision", False) or cur["damage"] > prev["damage"])
+    code = ck.C_COLLISION_DONE
 
 
-class TurnBackward(DoneComponent):
+class TurnBackward(_Done):
     """The car faces backwards: cos(angle) < 0."""
 
-    def __call__(self, prev, cur, action, info):
-        return math.cos(cur["angle"]) < 0.0
+    code = ck.C_TURN_BACKWARD_DONE
 
 
-class OutOfTrack(DoneComponent):
+class OutOfTrack(_Done):
     """trackPos outside `track_limits` (low, high), or off the road (a rangefinder < 0)."""
+
+    code = ck.C_OUT_OF_TRACK
 
     def __init__(self, *, track_limits: Sequence[float] = (-1.0, 1.0)):
         self.low, self.high = float(track_limits[0]), float(track_limits[1])
+        self.reset()
 
-    def __call__(self, prev, cur, action, info):
-        pos = cur["trackPos"]
-        return pos < self.low or pos > self.high or min(cur["track"]) < 0.0
+    def kernel_params(self, length):
+        return self.low, self.high
 
 
-class Rank1(DoneComponent):
+class Rank1(_Done):
     """The car leads the race: racePos == 1."""
 
-    def __call__(self, prev, cur, action, info):
-        return cur["racePos"] == 1
+    code = ck.C_RANK1
 
 
 DONES: dict[str, type[DoneComponent]] = {

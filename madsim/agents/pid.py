@@ -12,6 +12,10 @@ no derivative kick, the integrators stop winding up while their output saturates
 clipped to the SCR ranges, braking is proportional to the negative speed output (MADRaS brakes
 fully on any negative output) and the normalised lane action spans the track limits (MADRaS
 maps [-1, 1] to [-3, 1]).
+
+The arithmetic is written once, compiled, over plain state and parameter rows (`pid_step`,
+`pid_controls`): the classes here drive one controller with it, `BatchedTS`
+(madsim.agents.batched) every learner of a batch, and the traffic kernel every traffic car.
 """
 
 from __future__ import annotations
@@ -20,11 +24,17 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba import njit
+
+from madsim.physics.sensors import O_ANGLE, O_SX, O_TPOS
 
 __all__ = [
     "MADRAS_ACCEL_GAINS",
     "MADRAS_STEER_GAINS",
     "PID",
+    "desired_lane_speed",
+    "pid_controls",
+    "pid_step",
     "PIDController",
     "TrackSpeedController",
     "rpm_gear",
@@ -36,18 +46,19 @@ MADRAS_STEER_GAINS = (5.1, 0.001, 1e-6)
 SPEED_UNIT_KMH = 50.0                        # gym_torcs scales speeds as km/h / 50 (spec 5.1)
 
 # snakeoil's automatic gearbox (spec 6.1): speedX km/h above which each gear 2..6 is used
-_SPEED_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)
+SPEED_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)
 # The SCR championship sample driver (SimpleDriver): SCR rpm at which gears 1..5 shift up,
 # and at which gears 2..6 shift down.
 _GEAR_UP_RPM = (5000.0, 6000.0, 6000.0, 6500.0, 7000.0)
 _GEAR_DOWN_RPM = (2500.0, 3000.0, 3000.0, 3500.0, 3500.0)
 
 
+@njit(cache=True)
 def speed_gear(speed_kmh: float) -> int:
     """MADRaS's (snakeoil's) gear for a forward speed in km/h: 1 up to 50, 2 above 50, 3 above
     80, 4 above 110, 5 above 140, 6 above 170."""
     gear = 1
-    for threshold in _SPEED_GEAR_KMH:
+    for threshold in SPEED_GEAR_KMH:
         if speed_kmh > threshold:
             gear += 1
     return gear
@@ -67,6 +78,83 @@ def rpm_gear(gear: int, rpm: float) -> int:
     return gear
 
 
+# A PID's parameter block: kp, ki, kd, kick_free, limited, low, high; its state block:
+# integral, previous error, first call (1.0 until the first call after a reset).
+PID_PARAMS, PID_STATE = 7, 3
+# A controller's parameter block: the steer PID, the accel PID, accel_scale, steer_scale,
+# compat; its state block: steer PID, accel PID, lane, angle / pi, speed / 50 (the observation).
+CTRL_PARAMS, CTRL_STATE = 2 * PID_PARAMS + 3, 2 * PID_STATE + 3
+_ACCEL_SCALE, _STEER_SCALE, _COMPAT = 2 * PID_PARAMS, 2 * PID_PARAMS + 1, 2 * PID_PARAMS + 2
+_LANE, _ANGLE, _VEL = 2 * PID_STATE, 2 * PID_STATE + 1, 2 * PID_STATE + 2
+
+
+@njit(cache=True, inline="always")
+def py_min(a, b):
+    return b if b < a else a          # Python's min(a, b), also for signed zeros
+
+
+@njit(cache=True, inline="always")
+def py_max(a, b):
+    return b if b > a else a          # Python's max(a, b)
+
+
+@njit(cache=True)
+def pid_step(s, o, p, q, error):
+    """One tick of the PID whose state is s[o:o + 3] and parameters p[q:q + 7] (see `PID`)."""
+    if s[o + 2] != 0.0 and p[q + 3] != 0.0:
+        s[o + 1] = error
+    s[o + 2] = 0.0
+    derivative = error - s[o + 1]
+    s[o + 1] = error
+    held = s[o]
+    integral = held + error
+    kp, ki, kd = p[q], p[q + 1], p[q + 2]
+    out = kp * error + ki * integral + kd * derivative
+    if p[q + 4] != 0.0 and ((out > p[q + 6] and error > 0.0) or (out < p[q + 5] and error < 0.0)):
+        integral = held                                   # hold: no wind-up
+        out = kp * error + ki * integral + kd * derivative
+    s[o] = integral
+    return out
+
+
+@njit(cache=True)
+def pid_controls(s, o, p, q, lane_des, speed_des_kmh):
+    """(steer, accel, brake) of the controller with state s[o:o + 9] and parameters
+    p[q:q + 17] towards a track position and a speed in km/h (see `PIDController`)."""
+    steer_error = s[o + _ANGLE] - (s[o + _LANE] - lane_des) * p[q + _STEER_SCALE]
+    accel_error = (speed_des_kmh / SPEED_UNIT_KMH - s[o + _VEL]) * p[q + _ACCEL_SCALE]
+    steer = pid_step(s, o, p, q, steer_error)
+    accel = pid_step(s, o + PID_STATE, p, q + PID_PARAMS, accel_error)
+    if p[q + _COMPAT] != 0.0:
+        return steer, accel, (1.0 if accel < 0.0 else 0.0)
+    return (py_min(1.0, py_max(-1.0, steer)), py_min(1.0, py_max(0.0, accel)),
+            py_min(1.0, py_max(0.0, -accel)))
+
+
+@njit(cache=True)
+def observe(s, o, track_pos, angle, speed_kmh):
+    """Store the observation the next controls are computed from."""
+    s[o + _LANE] = track_pos
+    s[o + _ANGLE] = angle / math.pi
+    s[o + _VEL] = speed_kmh / SPEED_UNIT_KMH
+
+
+@njit(cache=True)
+def ts_act(state, params, fresh, lane_des, speed_des_kmh, slots, rows, out):
+    """The T-S controls (steer, accel, brake) -> out (m, 3) of slots (m,) from their latest
+    sensor rows (m, 79): state (n, 9), params (17,) as `pid_controls`; MADRaS (compat)
+    computes the first tick after a reset from the zeroed state (fresh (n,) bool)."""
+    compat = params[_COMPAT] != 0.0
+    for i in range(slots.shape[0]):
+        e = slots[i]
+        s = state[e]
+        if not (compat and fresh[e]):
+            observe(s, 0, rows[i, O_TPOS], rows[i, O_ANGLE], rows[i, O_SX])
+        fresh[e] = False
+        out[i, 0], out[i, 1], out[i, 2] = pid_controls(s, 0, params, 0, lane_des[e],
+                                                       speed_des_kmh[e])
+
+
 class PID:
     """One discrete PID, u = Kp e + Ki sum(e) + Kd (e - e_prev), evaluated once per tick.
 
@@ -80,30 +168,27 @@ class PID:
         self.kp, self.ki, self.kd = float(kp), float(ki), float(kd)
         self.limits = limits
         self.kick_free = kick_free
+        self.state = np.zeros(PID_STATE)
         self.reset()
+
+    def pack(self, p: np.ndarray) -> None:
+        """Write the parameter block (7 values) into p."""
+        low, high = self.limits if self.limits is not None else (0.0, 0.0)
+        p[:] = self.kp, self.ki, self.kd, self.kick_free, self.limits is not None, low, high
 
     def reset(self) -> None:
         """Clear the integral and the previous error."""
-        self.integral = 0.0
-        self.prev_error = 0.0
-        self._first = True
+        self.state[:] = 0.0, 0.0, 1.0
+
+    @property
+    def integral(self) -> float:
+        return float(self.state[0])
 
     def __call__(self, error: float) -> float:
         """Advance one tick with this error and return the output."""
-        if self._first and self.kick_free:
-            self.prev_error = error
-        self._first = False
-        derivative = error - self.prev_error
-        self.prev_error = error
-        integral = self.integral + error
-        out = self.kp * error + self.ki * integral + self.kd * derivative
-        if self.limits is not None:
-            low, high = self.limits
-            if (out > high and error > 0.0) or (out < low and error < 0.0):
-                integral = self.integral                      # hold: no wind-up
-                out = self.kp * error + self.ki * integral + self.kd * derivative
-        self.integral = integral
-        return out
+        p = np.empty(PID_PARAMS)
+        self.pack(p)
+        return pid_step(self.state, 0, p, 0, float(error))
 
 
 class PIDController:
@@ -125,6 +210,11 @@ class PIDController:
         self.steer_pid = PID(*steer_gains, limits=limits, kick_free=not self.compat)
         self.accel_scale = float(accel_scale)
         self.steer_scale = float(steer_scale)
+        self.params = np.zeros(CTRL_PARAMS)
+        self.pack(self.params)
+        self.state = np.zeros(CTRL_STATE)
+        self.steer_pid.state = self.state[:PID_STATE]          # views: one state, two readers
+        self.accel_pid.state = self.state[PID_STATE:2 * PID_STATE]
         self.reset()
 
     @classmethod
@@ -133,31 +223,44 @@ class PIDController:
         return cls(pid.accel_gains, pid.steer_gains, accel_scale=pid.accel_scale,
                    steer_scale=pid.steer_scale, madras_compat=pid.madras_compat)
 
+    def pack(self, p: np.ndarray) -> None:
+        """Write the controller's parameter block (17 values, see `pid_controls`) into p."""
+        self.steer_pid.pack(p[:PID_PARAMS])
+        self.accel_pid.pack(p[PID_PARAMS:2 * PID_PARAMS])
+        p[_ACCEL_SCALE], p[_STEER_SCALE], p[_COMPAT] = self.accel_scale, self.steer_scale, self.compat
+
+    @staticmethod
+    def initial_state(s: np.ndarray) -> None:
+        """A reset state block (9 values) in s: zeros, both PIDs before their first call."""
+        s[:] = 0.0
+        s[2] = s[PID_STATE + 2] = 1.0
+
     def reset(self, row: Mapping | None = None) -> None:
         """Start an episode. The fixed controller takes its state from `row` (the first
         observation); MADRaS (and a None row) starts from trackPos = angle = speed = 0."""
-        self.accel_pid.reset()
-        self.steer_pid.reset()
-        self.prev_lane = self.prev_angle = self.prev_vel = 0.0
+        self.initial_state(self.state)
         if row is not None and not self.compat:
             self.update(row)
 
     def update(self, row: Mapping) -> None:
         """Store the observation the next action is computed from (one car's SCR row)."""
-        self.prev_lane = float(row["trackPos"])
-        self.prev_angle = float(row["angle"]) / math.pi
-        self.prev_vel = float(row["speedX"]) / SPEED_UNIT_KMH
+        observe(self.state, 0, float(row["trackPos"]), float(row["angle"]), float(row["speedX"]))
 
     def get_action(self, lane_des: float, speed_des_kmh: float) -> tuple[float, float, float]:
         """(steer, accel, brake) towards a track position and a speed in km/h."""
-        steer_error = self.prev_angle - (self.prev_lane - lane_des) * self.steer_scale
-        accel_error = (speed_des_kmh / SPEED_UNIT_KMH - self.prev_vel) * self.accel_scale
-        steer = self.steer_pid(steer_error)
-        accel = self.accel_pid(accel_error)
-        if self.compat:
-            return steer, accel, (1.0 if accel < 0.0 else 0.0)
-        return (min(1.0, max(-1.0, steer)), min(1.0, max(0.0, accel)),
-                min(1.0, max(0.0, -accel)))
+        return pid_controls(self.state, 0, self.params, 0, float(lane_des), float(speed_des_kmh))
+
+
+@njit(cache=True)
+def desired_lane_speed(a0, a1, low, high, normalised, compat, target_speed):
+    """(lane in trackPos units, speed in km/h) of a T-S action: normalised, lane = low +
+    (high - low) (a0 + 1) / 2 (MADRaS master: low + (high - low) a0, spec 6.2, bug 15) and
+    speed = a1 * target_speed (m/s) in km/h; else a0, a1 as they are."""
+    if not normalised:
+        return a0, a1
+    span = high - low
+    lane = low + span * a0 if compat else low + span * (a0 + 1.0) / 2.0
+    return lane, a1 * target_speed * 3.6
 
 
 class TrackSpeedController:
@@ -167,7 +270,8 @@ class TrackSpeedController:
     `track_limits`, speed = a1 * target_speed (m/s); not normalised: a0 is the trackPos and a1
     the speed in km/h. Use: `set_action(a)` once per env step, `act(row)` every tick with the
     latest observation; `act` returns np.array([steer, accel, brake, gear]) (gear from
-    `speed_gear`, MADRaS's gearbox; the env overrides it in manual mode).
+    `speed_gear`, MADRaS's gearbox; the env overrides it in manual mode). The envs run the same
+    controller over all their learners (madsim.agents.batched.BatchedTS).
     """
 
     def __init__(self, pid: PIDController, *, target_speed: float,
@@ -182,15 +286,9 @@ class TrackSpeedController:
 
     def desired(self, action: Sequence[float]) -> tuple[float, float]:
         """(lane in trackPos units, speed in km/h) for a T-S action."""
-        a0, a1 = float(action[0]), float(action[1])
-        if not self.normalised:
-            return a0, a1
         low, high = self.track_limits
-        if self.pid.compat:
-            lane = low + (high - low) * a0          # MADRaS master (spec 6.2, bug 15)
-        else:
-            lane = low + (high - low) * (a0 + 1.0) / 2.0
-        return lane, a1 * self.target_speed * 3.6
+        return desired_lane_speed(float(action[0]), float(action[1]), low, high,
+                                  self.normalised, self.pid.compat, self.target_speed)
 
     def set_action(self, action: Sequence[float]) -> None:
         """Take a new T-S action; it holds until the next call."""

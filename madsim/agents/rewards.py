@@ -17,15 +17,21 @@ contact flag); Task pays once per episode; the angular-acceleration history star
 first observation and angle differences are wrapped to (-pi, pi]; SuccessfulOvertake pays
 positions gained beyond the best position of the episode (so losing and regaining a place pays
 nothing). AngularAcceleration follows the paper's formula (no dead zone unless `threshold`).
+
+The built-ins are written once, batch-first and compiled (madsim.agents.component_kernel): the
+envs evaluate them over all episodes or agents in one call (madsim.agents.batched); calling one
+as above is a batch of one. A component registered with `register_reward` is plain Python
+with the API above; the envs call it once per car and tick (a few us each).
 """
 
 from __future__ import annotations
 
 import inspect
-import math
 from collections.abc import Mapping
 from typing import Any
 
+from madsim.agents import component_kernel as ck
+from madsim.agents.batched import Builtin
 from madsim.agents.registry import registrar
 
 __all__ = [
@@ -39,12 +45,8 @@ __all__ = [
     "reward_params",
 ]
 
-TICK_S = 0.02          # one World.step (ARCHITECTURE.md); MADRaS's "TORCS step"
+TICK_S = ck.TICK_S     # one World.step (ARCHITECTURE.md); MADRaS's "TORCS step"
 CONTEXT_PARAMS = ("target_speed",)   # supplied by the agent's config, not by the reward entry
-
-
-def _wrap(a: float) -> float:
-    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
 class RewardComponent:
@@ -62,83 +64,76 @@ class RewardComponent:
         raise NotImplementedError
 
 
-class Progress(RewardComponent):
+class _Reward(Builtin, RewardComponent):
+    """A built-in reward: compiled over many slots (madsim.agents.component_kernel)."""
+
+
+class Progress(_Reward):
     """Fraction of the track covered during the tick: (d - d_prev) / L (MADRaS ProgressReward)."""
 
-    def __call__(self, prev, cur, action, info):
-        return (cur["distRaced"] - prev["distRaced"]) / info["track_length"]
+    code = ck.C_PROGRESS
 
 
-class Progress2(RewardComponent):
+class Progress2(_Reward):
     """The paper's progress reward: min(1, d / s_target), d the metres of this tick and
     s_target = target_speed * 0.02 s the metres per tick at the target speed (m/s)."""
+
+    code = ck.C_PROGRESS2
 
     def __init__(self, *, target_speed: float):
         if not target_speed > 0:
             raise ValueError(f"target_speed must be > 0 m/s, got {target_speed}")
         self.per_tick = target_speed * TICK_S
+        super().__init__()
 
-    def __call__(self, prev, cur, action, info):
-        return min(1.0, (cur["distRaced"] - prev["distRaced"]) / self.per_tick)
+    def kernel_params(self, length):
+        return (self.per_tick,)
 
 
 class Progress3(Progress2):
     """Progress2 without the cap: d / s_target (MADRaS devel's ProgressReward3)."""
 
-    def __call__(self, prev, cur, action, info):
-        return (cur["distRaced"] - prev["distRaced"]) / self.per_tick
+    code = ck.C_PROGRESS3
 
 
-class AvgSpeed(RewardComponent):
+class AvgSpeed(_Reward):
     """Paid on the tick that completes a lap (distRaced reaching k L): s_avg / s_target, the
     average speed of that lap over the target speed (the paper's average_reward)."""
+
+    code = ck.C_AVG_SPEED
 
     def __init__(self, *, target_speed: float):
         if not target_speed > 0:
             raise ValueError(f"target_speed must be > 0 m/s, got {target_speed}")
         self.target_speed = target_speed
-        self.reset()
+        super().__init__()
 
-    def reset(self):
-        self.ticks = 0            # ticks since the last paid lap
-        self.laps_paid = 0
-
-    def __call__(self, prev, cur, action, info):
-        self.ticks += 1
-        length = info["track_length"]
-        if cur["distRaced"] < (self.laps_paid + 1) * length:
-            return 0.0
-        self.laps_paid += 1
-        avg_speed = length / (self.ticks * TICK_S)
-        self.ticks = 0
-        return avg_speed / self.target_speed
+    def kernel_params(self, length):
+        return (self.target_speed,)
 
 
-class Collision(RewardComponent):
+class Collision(_Reward):
     """1 on a tick where damage rose or the env reports a contact."""
 
     kind = "penalty"
-
-    def __call__(self, prev, cur, action, info):
-        hit = info.get("collision", False) or cur["damage"] > prev["damage"]
-        return 1.0 if hit else 0.0
+    code = ck.C_COLLISION
 
 
-class TurnBackward(RewardComponent):
+class TurnBackward(_Reward):
     """1 while the car faces backwards: cos(angle) < 0."""
 
     kind = "penalty"
-
-    def __call__(self, prev, cur, action, info):
-        return 1.0 if math.cos(cur["angle"]) < 0.0 else 0.0
+    code = ck.C_TURN_BACKWARD
 
 
-class AngularAcceleration(RewardComponent):
+class AngularAcceleration(_Reward):
     """|a_t + a_{t-2} - 2 a_{t-1}| / max_ang_accl over the last three angles (rad, one per
     tick; the paper's alpha_reference = max_ang_accl). Below `threshold` (rad per tick^2) it is
     0; MADRaS's code used threshold = max_ang_accl, which almost never fires."""
 
     kind = "penalty"
+    code = ck.C_ANG_ACCEL
+    initial_state = (0.0, 0.0, 1.0)
 
     def __init__(self, *, max_ang_accl: float = 2.0, threshold: float = 0.0):
         if not max_ang_accl > 0:
@@ -147,63 +142,40 @@ class AngularAcceleration(RewardComponent):
             raise ValueError(f"threshold must be >= 0, got {threshold}")
         self.reference = float(max_ang_accl)
         self.threshold = float(threshold)
-        self.reset()
+        super().__init__()
 
-    def reset(self):
-        self.history = None       # (a_{t-2}, a_{t-1})
-
-    def __call__(self, prev, cur, action, info):
-        if self.history is None:
-            self.history = (prev["angle"], prev["angle"])
-        a0, a1 = self.history
-        a2 = cur["angle"]
-        self.history = (a1, a2)
-        acc = abs(_wrap(a2 - a1) - _wrap(a1 - a0))
-        return acc / self.reference if acc > self.threshold else 0.0
+    def kernel_params(self, length):
+        return self.reference, self.threshold
 
 
-class SuccessfulOvertake(RewardComponent):
+class SuccessfulOvertake(_Reward):
     """Positions gained beyond the best race position held so far in the episode."""
 
-    def reset(self):
-        self.best = None
-
-    def __call__(self, prev, cur, action, info):
-        if self.best is None:
-            self.best = prev["racePos"]
-        gained = self.best - cur["racePos"]
-        if gained > 0:
-            self.best = cur["racePos"]
-            return float(gained)
-        return 0.0
+    code = ck.C_OVERTAKE
+    initial_state = (0.0, 1.0, 0.0)
 
 
-class RankOne(RewardComponent):
+class RankOne(_Reward):
     """1 on every tick the car leads the race (racePos == 1)."""
 
-    def __call__(self, prev, cur, action, info):
-        return 1.0 if cur["racePos"] == 1 else 0.0
+    code = ck.C_RANK_ONE
 
 
-class Task(RewardComponent):
+class Task(_Reward):
     """`bonus` once per episode, on the first tick with racePos <= `position` (MADRaS devel's
     TaskReward: 100 at position 2)."""
+
+    code = ck.C_TASK
 
     def __init__(self, *, position: int = 2, bonus: float = 100.0):
         if isinstance(position, bool) or not isinstance(position, int) or position < 1:
             raise ValueError(f"position must be an int >= 1, got {position!r}")
         self.position = position
         self.bonus = float(bonus)
-        self.reset()
+        super().__init__()
 
-    def reset(self):
-        self.paid = False
-
-    def __call__(self, prev, cur, action, info):
-        if self.paid or cur["racePos"] > self.position:
-            return 0.0
-        self.paid = True
-        return self.bonus
+    def kernel_params(self, length):
+        return float(self.position), self.bonus
 
 
 REWARDS: dict[str, type[RewardComponent]] = {

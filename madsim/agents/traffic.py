@@ -12,15 +12,16 @@ ahead, track[18] 90 deg right); UDP clients must ask for them.
 
 A subclass only says where it wants to be: `target(row, t_s) -> (lane, speed)`, lane in trackPos
 units (+1 left edge, -1 right edge), speed in m/s; a speed <= 0 means stop and hold the brake.
-`TrafficBehaviour.act` does the driving: the T-S PID controller (madsim.agents.pid) towards the
-lane and speed, plus what MADRaS's traffic lacked or got wrong (spec section 4):
-- collision avoidance (`gaps_ahead`): cars in the front half of the opponents sensor
+The driving, compiled over all traffic cars at once (madsim.agents.traffic_kernel, run by a
+`TrafficFleet`; `act` is a fleet of one): the T-S PID controller (madsim.agents.pid's gains)
+towards the lane and speed, plus what MADRaS's traffic lacked or got wrong (spec section 4):
+- collision avoidance: cars in the front half of the opponents sensor
   (symmetric; MADRaS used sectors 16-18, 20 deg left to 10 deg right) that are in the own path
   (own lane and any lane it is moving to, bent with the road) cap the speed at
   (gap - min_safe_dist) / collision_time_window, so a follower keeps min_safe_dist + window x
   speed; closer than min_safe_dist it brakes fully. The PID's own braking is kept otherwise
   (MADRaS overwrote it with brake = 0);
-- off-track prevention (`_guard`): a car heading for the near edge (reached within 0.5 s), or
+- off-track prevention: a car heading for the near edge (reached within 0.5 s), or
   within min_safe_dist of it outside its lane, steers back towards the road, not towards the
   nearer edge as MADRaS did; off the road it drives back to the centre at walking pace;
 - bends: the speed is capped by the free road ahead (track[7..11]) and by the road curvature,
@@ -28,31 +29,33 @@ lane and speed, plus what MADRaS's traffic lacked or got wrong (spec section 4):
   estimate steers forward and corrects `angle` for the kinematic sideslip, so a car holds its
   lane within ~0.1 through a 12 m radius bend (the PID alone drifts ~1 there);
 - lane changes move at most LANE_SPEED sideways; a behaviour can ask `side_clear` first.
-Randomness comes only from the rng given to `reset`.
+Randomness comes only from the rng given to `reset` (taken 64 draws at a time, in the order
+the behaviour consumes them).
 
 New behaviours: subclass, implement `target`, decorate with `@register_behaviour("Name")`
-(docs/traffic.md). `make_behaviour(entry)` builds one from a config TrafficConfig.
+(docs/traffic.md); their `target` runs in Python (~5-10 us per car and tick), the driving
+stays compiled. `make_behaviour(entry)` builds one from a config TrafficConfig.
 """
 
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from madsim.agents.pid import PIDController, speed_gear
+from madsim.agents import traffic_kernel as tk
+from madsim.agents.pid import CTRL_PARAMS, CTRL_STATE, PIDController
+from madsim.agents.traffic_fleet import TrafficFleet
+from madsim.physics.sensors import N_VALUES, SENSOR_OFFSETS
 
 __all__ = ["BEHAVIOURS", "CarGeometry", "ConstVel", "DriveAndPark", "Parked", "RandomLaneSwitch",
            "RandomStopping", "SinusoidalSpeed", "TrafficBehaviour", "draw_traffic_placements",
            "make_behaviour", "register_behaviour"]
 
 TICK_S = 0.02
-KMH = 3.6
-NO_CAR_M = 200.0                     # opponents sensor value of an empty sector
 BEHAVIOURS: dict[str, type[TrafficBehaviour]] = {}
 
 
@@ -101,37 +104,20 @@ def _geometry_of_name(name: str) -> CarGeometry:
     return CarGeometry.of(load_car(name))
 
 
-# (cos, sin) of five bearings spanning each opponents sector j, [(j - 18) * 10, (j - 17) * 10] deg
-_SUB_BEARINGS = tuple(tuple((math.cos(math.radians((j - 18) * 10.0 + 2.5 * k)),
-                             math.sin(math.radians((j - 18) * 10.0 + 2.5 * k))) for k in range(5))
-                      for j in range(36))
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 class TrafficBehaviour:
     """Base class: sensor row -> (steer, accel, brake, gear) through the PID controller.
 
     Args: pid (default: MADRaS's gains), collision_time_window (s, following headway),
     min_safe_dist (m, bumper gap kept to a car ahead and margin kept to the road edge),
     car (name, CarSpec or CarGeometry; overridden by info["car"] at reset).
-    Subclasses implement `target` and may override `setup` (draws at reset).
+    Subclasses implement `target` and may override `setup` (draws at reset). The driving is
+    compiled (madsim.agents.traffic_kernel); the state lives in the rows of a `TrafficFleet`
+    (its own one-row fleet, or the env's), which `ticks`, `travelled`, `half_width` and
+    `track_length` read.
     """
 
     behaviour_name = "TrafficBehaviour"
-    FRONT_CONE_DEG = 90.0        # half angle of the opponents cone used for braking
-    LATERAL_MARGIN_M = 0.4       # side clearance added to a car width when testing "in my path"
-    PLAN_DECEL = 3.0             # m/s^2 used to anticipate corners and to plan stops
-    LAT_ACCEL = 4.0              # m/s^2 allowed in corners
-    LANE_SPEED = 1.0             # m/s: how fast the lane target may move sideways
-    CURVATURE_TAU_S = 0.25       # time constant of the road curvature observer
-    HOLD_SPEED = 0.3             # m/s below which a stopping car holds the brake
-    GUARD_HORIZON_S = 0.5        # lateral look-ahead of the off-track guard
-    GUARD_SPEED = 3.0            # m/s: speed while off the road
-    CREEP_SPEED = 1.0            # m/s towards a car that is possibly, not surely, in the path
-    CREEP_GAP_M = 0.3            # ... down to this bumper gap
+    _kernel_kind = tk.K_USER          # a built-in's target is compiled; a subclass's is Python
 
     def __init__(self, *, pid: PIDController | None = None, collision_time_window: float = 1.0,
                  min_safe_dist: float = 1.0, car=None):
@@ -143,6 +129,11 @@ class TrafficBehaviour:
         self._car = car
         self.params: dict[str, Any] = {}
         self.info: dict = {}
+        self._own = TrafficFleet(1)
+        self._fleet, self._r = self._own, 0
+        self._sens = np.zeros((1, N_VALUES))
+        self._ctrl = np.zeros((1, 4))
+        self._rows = np.zeros(1, dtype=np.int64)
 
     # --- the interface the env and the UDP client use --------------------------------------
 
@@ -154,32 +145,42 @@ class TrafficBehaviour:
         self.rng = rng
         self.info = info = {} if info is None else info
         self.tick_s = float(info.get("tick_s", TICK_S))
-        self.geometry = CarGeometry.of(info.get("car", self._car))
+        self.geometry = g = CarGeometry.of(info.get("car", self._car))
         length, width = info.get("track_length"), info.get("track_width")
-        self.track_length = float(length) if length else None
-        self.half_width = float(width) / 2.0 if width else None
-        self.pid.reset(None)
-        self.ticks = 0
-        self._steer = 0.0
-        self._kappa = 0.0
-        self._angle_prev: float | None = None
-        self._lane_cmd: float | None = None
-        self._dist0: float | None = None
-        self._dfs0 = self._dfs_prev = 0.0
-        self.travelled = 0.0
+        own = self._fleet = self._own
+        self._r = 0
+        own.S[0] = 0.0
+        PIDController.initial_state(own.S[0, tk.S_PID:tk.S_PID + CTRL_STATE])
+        own.S[0, tk.RAND_AT] = tk.RAND_BUF
+        own.S[0, tk.TRACK_LENGTH] = float(length) if length else 0.0
+        own.S[0, tk.HALF_WIDTH] = float(width) / 2.0 if width else 0.0
+        p = own.P[0]
+        p[:] = 0.0
+        p[[tk.WINDOW_S, tk.MIN_SAFE, tk.LENGTH, tk.WIDTH, tk.WHEELBASE, tk.REAR_AXLE,
+           tk.STEER_LOCK, tk.TICK]] = (self.window_s, self.min_safe_dist, g.length_m, g.width_m,
+                                       g.wheelbase_m, g.rear_axle_m, g.steer_lock_rad, self.tick_s)
+        self.pid.pack(p[tk.P_PID:tk.P_PID + CTRL_PARAMS])
         info["behaviour"] = self.behaviour_name
         info["params"] = dict(self.params)
         self.setup(rng, info)
+        self._pack(p, own.lanes[0])
+        custom = type(self).target is not TrafficBehaviour.target
+        self._kind = tk.K_USER if custom else self._kernel_kind
+        own.put(0, self)
 
     def act(self, row: Mapping) -> tuple[float, float, float, int]:
         """Controls for the coming tick from the latest sensors (SCR names and units)."""
-        if row["curLapTime"] < 0.0:               # TORCS countdown: wait, the clock has not started
-            return 0.0, 0.0, 1.0, 1
-        t_s = self.ticks * self.tick_s
-        self.ticks += 1
-        self._observe(row)
-        lane, speed = self.target(row, t_s)
-        return self._drive(row, float(lane), float(speed))
+        if self._fleet is not self._own:          # driven in a batch until now: take it back
+            self._unbind()
+        sens = self._sens
+        for name in _READ if self._kind != tk.K_USER else SENSOR_OFFSETS:   # target sees all
+            value = row[name] if name in _READ else row.get(name)
+            if value is not None:
+                o, w = SENSOR_OFFSETS[name]
+                sens[0, o:o + w] = value
+        self._own.act(sens, self._ctrl, self._rows)
+        steer, accel, brake, gear = self._ctrl[0].tolist()
+        return steer, accel, brake, int(gear)
 
     # --- for subclasses --------------------------------------------------------------------
 
@@ -198,156 +199,60 @@ class TrafficBehaviour:
         reach = 2.0 * self.geometry.length_m
         return all(opp[j] >= reach for j in sectors)
 
-    # --- the driving -----------------------------------------------------------------------
+    # --- state, read from the fleet row --------------------------------------------------------
 
-    def _observe(self, row: Mapping) -> None:
-        """Road half width (if not given), odometry and the curvature observer."""
-        track = row["track"]
-        tpos, angle = float(row["trackPos"]), float(row["angle"])
-        if self.half_width is None and abs(tpos) < 1.0 and track[0] > 0 and track[18] > 0:
-            self.half_width = 0.5 * (track[0] + track[18]) * abs(math.cos(angle))
-        dist, dfs = float(row["distRaced"]), float(row["distFromStart"])
-        if self._dist0 is None:
-            self._dist0, self._dfs0 = dist, dfs
-        elif self.track_length is None and dfs < self._dfs_prev - 50.0:   # crossed the line
-            self.track_length = self._dfs0 + (dist - self._dist0) - dfs
-        self._dfs_prev = dfs
-        self.travelled = dist - self._dist0
-        v = float(row["speedX"]) / KMH
-        if self._angle_prev is not None and v > 2.0:
-            # d(angle)/dt = kappa_road * v - yaw rate, yaw rate = v * tan(wheel angle) / wheelbase
-            g = self.geometry
-            kappa_car = math.tan(self._steer * g.steer_lock_rad) / g.wheelbase_m
-            raw = kappa_car + _wrap(angle - self._angle_prev) / (v * self.tick_s)
-            self._kappa += min(1.0, self.tick_s / self.CURVATURE_TAU_S) * (raw - self._kappa)
-        self._angle_prev = angle
+    def _state(self, col: int) -> float:
+        return float(self._fleet.S[self._r, col])
 
-    def gaps_ahead(self, row: Mapping, lanes=(), max_range_m: float = NO_CAR_M) -> tuple[float, float]:
-        """Bumper gaps (m, along the road; inf if none) to the nearest car ahead that is surely
-        and that is possibly in the own path.
+    @property
+    def ticks(self) -> int:
+        """Ticks driven since reset (countdown ticks excluded)."""
+        return int(self._state(tk.TICKS))
 
-        Every sector of the front half (+-FRONT_CONE_DEG) is turned into the road frame with
-        `angle`. Its car is possibly in the path if, at some bearing of the sector's 10 degrees
-        and some road curvature between 0 and the estimate, its lateral offset from the own lane
-        line comes within a car width plus LATERAL_MARGIN_M of the band between the own position
-        and `lanes` (trackPos units, where the car is going); surely, if so at the sector's centre
-        bearing for both curvatures. Ten-degree sectors cannot tell 1.8 m from 2.5 m beside at
-        10 m, hence the two answers: the first stops the car, the second lets it creep. Cars
-        farther than max_range_m (centre distance) are ignored."""
-        opp = row["opponents"]
-        g = self.geometry
-        reach = g.width_m + self.LATERAL_MARGIN_M
-        shifts = [0.0]
-        if self.half_width:
-            shifts += [(lane - float(row["trackPos"])) * self.half_width for lane in lanes]
-        lo_edge, hi_edge = min(shifts) - reach, max(shifts) + reach
-        k_lo, k_hi = self._curvature_range(row)
-        heading = float(row["angle"])                   # car points this far right of the road
-        cos_h, sin_h = math.cos(heading), math.sin(heading)
-        n_side = round(self.FRONT_CONE_DEG / 10.0)
-        max_range_m = min(max_range_m, NO_CAR_M)
-        sure = possible = math.inf
-        for j in range(18 - n_side, 18 + n_side):
-            d = float(opp[j])
-            if d >= max_range_m or d <= 0.0:
-                continue
-            for step, (cos_b, sin_b) in enumerate(_SUB_BEARINGS[j]):    # across the sector
-                x = d * (cos_b * cos_h - sin_b * sin_h)                # along the road
-                y = -d * (sin_b * cos_h + cos_b * sin_h)               # to the left
-                if x <= 0.0:
-                    continue
-                e_hi, e_lo = y - k_lo * 0.5 * x * x, y - k_hi * 0.5 * x * x
-                if e_lo <= hi_edge and e_hi >= lo_edge:
-                    possible = min(possible, x - g.length_m)
-                    if step == 2 and lo_edge <= e_lo and e_hi <= hi_edge:
-                        sure = min(sure, x - g.length_m)
-        return sure, possible
+    @property
+    def travelled(self) -> float:
+        """m driven since the first tick (distRaced)."""
+        return self._state(tk.TRAVELLED)
 
-    def _curvature_range(self, row: Mapping) -> tuple[float, float]:
-        """Road curvatures (1/m, left +) to allow for ahead: between 0 and the estimate, cut to
-        what the free ray straight ahead (track[9], length D) allows: a road of curvature k
-        keeps the ray inside only if |y0 - angle D - k D^2 / 2| <= half width (y0: own offset)."""
-        lo, hi = min(0.0, self._kappa), max(0.0, self._kappa)
-        ahead, hw = float(row["track"][9]), self.half_width
-        if ahead <= 0.0 or not hw:
-            return lo, hi
-        y0 = float(row["trackPos"]) * hw - float(row["angle"]) * ahead
-        ray_lo, ray_hi = 2.0 * (y0 - hw) / ahead ** 2, 2.0 * (y0 + hw) / ahead ** 2
-        lo, hi = max(lo, ray_lo), min(hi, ray_hi)
-        if lo > hi:
-            lo = hi = min(max(self._kappa, ray_lo), ray_hi)
-        return lo, hi
+    @property
+    def half_width(self) -> float | None:
+        """m, from info["track_width"] or estimated from the rangefinders (None: not yet)."""
+        return self._state(tk.HALF_WIDTH) or None
 
-    def _speed_cap(self, row: Mapping) -> float:
-        """m/s allowed by the road: stop before the road edge ahead (the
-        longest ray within 10 deg of ahead), limit the corner acceleration."""
-        ahead = max(row["track"][7:12])                   # free road within 10 deg of ahead
-        cap = math.inf
-        if ahead > 0.0:
-            cap = math.sqrt(2.0 * self.PLAN_DECEL * max(ahead - self.min_safe_dist, 0.0))
-        if abs(self._kappa) > 1e-6:
-            cap = min(cap, math.sqrt(self.LAT_ACCEL / abs(self._kappa)))
-        return max(cap, self.GUARD_SPEED)
+    @property
+    def track_length(self) -> float | None:
+        """m, from info["track_length"] or learnt at the first start-line crossing."""
+        return self._state(tk.TRACK_LENGTH) or None
 
-    def _guard(self, row: Mapping, lane: float, v: float) -> tuple[float, bool] | None:
-        """(lane towards the road, cut the throttle) if the car is leaving the road, else None.
+    def _pack(self, p: np.ndarray, lanes: np.ndarray) -> None:
+        """Write the behaviour's parameters into its fleet parameter row (built-ins)."""
 
-        Off the road: back to the centre at GUARD_SPEED. Heading for the near edge, reached
-        within GUARD_HORIZON_S at the present lateral speed: steer back, no throttle. Within
-        min_safe_dist of the edge and outside its own lane: steer back to the lane."""
-        tpos = float(row["trackPos"])
-        if abs(tpos) >= 1.0:
-            return 0.0, False
-        side = 1.0 if tpos > 0.0 else -1.0
-        hw = self.half_width or 1.0
-        edge_m = (1.0 - abs(tpos)) * hw
-        outward = -side * v * math.sin(float(row["angle"]))     # m/s towards the near edge
-        inside = abs(tpos) - 0.3
-        if edge_m < outward * self.GUARD_HORIZON_S:
-            return side * (max(lane * side, inside) if lane * side < abs(tpos) else inside), True
-        if edge_m < self.min_safe_dist and lane * side < abs(tpos) - 0.05:
-            return side * max(lane * side, inside), False
-        return None
+    def _draws(self, k: int) -> np.ndarray:
+        """k draws from the episode's generator, in the order the behaviour consumes them."""
+        raise NotImplementedError
 
-    def _drive(self, row: Mapping, lane: float, speed: float) -> tuple[float, float, float, int]:
-        g = self.geometry
-        v = float(row["speedX"]) / KMH
-        tpos = float(row["trackPos"])
-        if self._lane_cmd is None:
-            self._lane_cmd = max(-1.0, min(1.0, tpos))
-        step = self.LANE_SPEED * self.tick_s / (self.half_width or 5.0)
-        self._lane_cmd += max(-step, min(step, lane - self._lane_cmd))
-        lane_des = self._lane_cmd
-        stopping = speed <= 0.0
-        relevant = g.length_m + self.min_safe_dist + self.window_s * max(speed, v) + 5.0
-        sure, possible = self.gaps_ahead(row, (lane, lane_des), relevant)
-        s0 = self.min_safe_dist
-        creep = self.CREEP_SPEED if possible > self.CREEP_GAP_M else 0.0
-        v_des = min(max(speed, 0.0), self._speed_cap(row), max(0.0, (sure - s0) / self.window_s),
-                    max(creep, (possible - s0) / self.window_s))
-        blocked = sure < s0 or possible < self.CREEP_GAP_M
-        guard = self._guard(row, lane_des, v)
-        cut = False
-        if guard is not None:
-            lane_des, cut = guard
-            if abs(tpos) >= 1.0:
-                v_des = min(v_des, self.GUARD_SPEED)
-        # In a bend the CG moves at the kinematic sideslip atan(b kappa) to the heading; the PID
-        # gets the angle of the motion, or it would hold the car off its lane by that angle.
-        slip = math.atan(g.rear_axle_m * self._kappa)
-        self.pid.update({"trackPos": tpos, "angle": float(row["angle"]) - slip,
-                         "speedX": float(row["speedX"])})
-        steer, accel, brake = self.pid.get_action(lane_des, v_des * KMH)
-        steer += math.atan(g.wheelbase_m * self._kappa) / g.steer_lock_rad
-        steer = max(-1.0, min(1.0, steer))
-        if stopping or cut:
-            accel = 0.0
-        if (stopping and v < self.HOLD_SPEED) or blocked:
-            accel, brake = 0.0, 1.0
-        if stopping and v < self.HOLD_SPEED:
-            steer = 0.0
-        self._steer = steer
-        return steer, accel, brake, speed_gear(float(row["speedX"]))
+    def _record(self, event: float, t_s: float, value: float) -> None:
+        """Write a draw the kernel made into the episode info."""
+
+    def _bind(self, fleet: TrafficFleet, r: int) -> None:
+        """Move this car's state to row r of `fleet` (called by fleet.put)."""
+        if fleet is not self._own and type(self).act is not TrafficBehaviour.act:
+            fleet.kind[r] = tk.K_FOREIGN        # it overrides act: a batch calls that
+            return
+        fleet.kind[r] = self._kind
+        if fleet is not self._own:
+            for a in ("S", "P", "lanes", "rand"):
+                getattr(fleet, a)[r] = getattr(self._own, a)[0]
+        self._fleet, self._r = fleet, r
+
+    def _unbind(self) -> None:
+        for a in ("S", "P", "lanes", "rand"):
+            getattr(self._own, a)[0] = getattr(self._fleet, a)[self._r]
+        self._fleet, self._r = self._own, 0
+
+
+_READ = ("angle", "curLapTime", "distFromStart", "distRaced", "opponents", "speedX", "track",
+         "trackPos")
 
 
 # --- the built-in behaviours (parameters: madsim.envs.config.TRAFFIC_PARAMS, SI units) --------
@@ -357,18 +262,22 @@ class TrafficBehaviour:
 class ConstVel(TrafficBehaviour):
     """Constant speed (m/s) in a constant lane (trackPos units)."""
 
+    _kernel_kind = tk.K_CONST_VEL
+
     def __init__(self, target_speed: float = 13.89, lane: float = 0.0, **base):
         super().__init__(**base)
         self.params = {"target_speed": float(target_speed), "lane": float(lane)}
 
-    def target(self, row, t_s):
-        return self.params["lane"], self.params["target_speed"]
+    def _pack(self, p, lanes):
+        p[tk.SPEED], p[tk.LANE_P] = self.params["target_speed"], self.params["lane"]
 
 
 @register_behaviour("SinusoidalSpeed")
 class SinusoidalSpeed(TrafficBehaviour):
     """speed = mean_speed + speed_amplitude sin(2 pi t / speed_period) (m/s, s) in a lane;
     t from the first tick. MADRaS oscillated around 0; this oscillates around the mean."""
+
+    _kernel_kind = tk.K_SINUSOIDAL
 
     def __init__(self, mean_speed: float = 13.89, speed_amplitude: float = 13.89,
                  speed_period: float = 125.66, lane: float = 0.0, **base):
@@ -378,10 +287,10 @@ class SinusoidalSpeed(TrafficBehaviour):
         self.params = {"mean_speed": float(mean_speed), "speed_amplitude": float(speed_amplitude),
                        "speed_period": float(speed_period), "lane": float(lane)}
 
-    def target(self, row, t_s):
-        p = self.params
-        return p["lane"], p["mean_speed"] + p["speed_amplitude"] * math.sin(
-            2.0 * math.pi * t_s / p["speed_period"])
+    def _pack(self, p, lanes):
+        q = self.params
+        p[[tk.MEAN, tk.AMPLITUDE, tk.PERIOD, tk.LANE_P]] = (
+            q["mean_speed"], q["speed_amplitude"], q["speed_period"], q["lane"])
 
 
 @register_behaviour("RandomLaneSwitch")
@@ -390,31 +299,33 @@ class RandomLaneSwitch(TrafficBehaviour):
     drive there at target_speed. A move waits while the side it goes to is not clear.
     info["lane_draws"]: [(t_s, lane)] per draw."""
 
+    _kernel_kind = tk.K_LANE_SWITCH
+
     def __init__(self, target_speed: float = 27.78, lane_change_interval: float = 0.1,
                  lanes=(-0.75, 0.75), **base):
         super().__init__(**base)
         if not lane_change_interval > 0:
             raise ValueError(f"lane_change_interval must be > 0 s, got {lane_change_interval}")
+        if not 1 <= len(lanes) <= tk.MAX_LANES:
+            raise ValueError(f"lanes must hold 1 to {tk.MAX_LANES} lanes, got {len(lanes)}")
         self.params = {"target_speed": float(target_speed),
                        "lane_change_interval": float(lane_change_interval),
                        "lanes": tuple(float(x) for x in lanes)}
 
     def setup(self, rng, info):
-        self.lane: float | None = None
-        self.wanted = 0.0
         self.draws = info["lane_draws"] = []
 
-    def target(self, row, t_s):
-        p = self.params
-        if t_s >= len(self.draws) * p["lane_change_interval"] - 1e-9:
-            lanes = p["lanes"]
-            self.wanted = lanes[int(self.rng.integers(len(lanes)))]
-            self.draws.append((t_s, self.wanted))
-        if self.lane is None:
-            self.lane = float(row["trackPos"])
-        if self.wanted != self.lane and self.side_clear(row, self.wanted > self.lane):
-            self.lane = self.wanted
-        return self.lane, p["target_speed"]
+    def _pack(self, p, lanes):
+        q = self.params
+        p[tk.SPEED], p[tk.INTERVAL], p[tk.N_LANES] = (q["target_speed"],
+                                                      q["lane_change_interval"], len(q["lanes"]))
+        lanes[:len(q["lanes"])] = q["lanes"]
+
+    def _draws(self, k):
+        return self.rng.integers(len(self.params["lanes"]), size=k)
+
+    def _record(self, event, t_s, value):
+        self.draws.append((t_s, value))
 
 
 @register_behaviour("RandomStopping")
@@ -422,6 +333,8 @@ class RandomStopping(TrafficBehaviour):
     """Drive at target_speed in a lane; while driving, with stop_probability per tick, halt and
     stand still for a duration ~ U(0, max_stop_duration] s (counted from the standstill), then
     drive on. No throttle while halting. info["stops"]: [(t_s, duration_s)] per halt."""
+
+    _kernel_kind = tk.K_STOPPING
 
     def __init__(self, target_speed: float = 13.89, lane: float = 0.0, stop_probability: float = 0.1,
                  max_stop_duration: float = 0.1, **base):
@@ -433,22 +346,18 @@ class RandomStopping(TrafficBehaviour):
                        "max_stop_duration": float(max_stop_duration)}
 
     def setup(self, rng, info):
-        self.stand_s: float | None = None      # standstill still to come; None: driving
         self.stops = info["stops"] = []
 
-    def target(self, row, t_s):
-        p = self.params
-        if self.stand_s is None and self.rng.random() < p["stop_probability"]:
-            self.stand_s = p["max_stop_duration"] * (1.0 - self.rng.random())   # (0, max]
-            self.stops.append((t_s, self.stand_s))
-        if self.stand_s is not None:
-            if float(row["speedX"]) / KMH < self.HOLD_SPEED:
-                self.stand_s -= self.tick_s
-                if self.stand_s <= 0.0:
-                    self.stand_s = None
-            if self.stand_s is not None:
-                return p["lane"], 0.0
-        return p["lane"], p["target_speed"]
+    def _pack(self, p, lanes):
+        q = self.params
+        p[[tk.SPEED, tk.LANE_P, tk.STOP_P, tk.MAX_STOP]] = (
+            q["target_speed"], q["lane"], q["stop_probability"], q["max_stop_duration"])
+
+    def _draws(self, k):
+        return self.rng.random(k)
+
+    def _record(self, event, t_s, value):
+        self.stops.append((t_s, value))
 
 
 @register_behaviour("DriveAndPark")
@@ -457,7 +366,7 @@ class DriveAndPark(TrafficBehaviour):
     (m, the next time the car gets there) and park: brake held from then on. Lane and distance
     are drawn uniformly from their ranges at reset (info["parking_lane"], ["parking_distance"])."""
 
-    STOP_TOLERANCE_M = 0.25
+    _kernel_kind = tk.K_PARK
 
     def __init__(self, target_speed: float = 13.89, parking_lane=(-0.8, 0.0),
                  parking_distance=(185.0, 200.0), **base):
@@ -470,36 +379,21 @@ class DriveAndPark(TrafficBehaviour):
         self.lane = float(rng.uniform(*self.params["parking_lane"]))
         self.distance = float(rng.uniform(*self.params["parking_distance"]))
         info["parking_lane"], info["parking_distance"] = self.lane, self.distance
-        self.parked = False
-        self.to_go: float | None = None        # m from the first tick's position to the spot
 
-    def remaining(self, row) -> float:
-        """m still to drive to the parking spot (inf while the track length is unknown and
-        the spot lies beyond the start line)."""
-        if self.to_go is None:
-            d = self.distance - self._dfs0
-            if d < 0.0 and self.track_length is None:
-                return math.inf
-            self.to_go = d % self.track_length if self.track_length else d
-        return self.to_go - self.travelled
+    def _pack(self, p, lanes):
+        p[tk.SPEED], p[tk.PARK_LANE], p[tk.PARK_DISTANCE] = (
+            self.params["target_speed"], self.lane, self.distance)
 
-    def target(self, row, t_s):
-        rem = self.remaining(row)
-        if not self.parked and (rem <= self.STOP_TOLERANCE_M or (
-                rem < 1.0 and float(row["speedX"]) / KMH < self.HOLD_SPEED)):
-            self.parked = True
-        if self.parked:
-            return self.lane, 0.0
-        speed = min(self.params["target_speed"], math.sqrt(2.0 * self.PLAN_DECEL * max(rem, 0.0)))
-        return self.lane, max(speed, 0.5)
+    @property
+    def parked(self) -> bool:
+        return bool(self._state(tk.PARKED))
 
 
 @register_behaviour("Parked")
 class Parked(TrafficBehaviour):
     """Stands where it was placed from the first tick: no throttle, brake held."""
 
-    def target(self, row, t_s):
-        return float(row["trackPos"]), 0.0
+    _kernel_kind = tk.K_PARKED
 
 
 # --- building and placing ----------------------------------------------------------------------

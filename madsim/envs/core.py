@@ -20,7 +20,11 @@ Traffic behaviours come from `madsim.agents.traffic` (looked up when a config ca
 traffic) or from the `traffic_factory` hook: a callable `factory(entry: TrafficConfig)` ->
 an object with `reset(rng, info)` (rng: numpy Generator; info: track_length m, track_width m,
 index, row, car, placement (s m, n m), tick_s) and `act(row) -> (steer, accel, brake, gear)`,
-row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`).
+row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`). Every tick one
+`TrafficFleet` call drives them all (the built-in behaviours compiled, other objects by `act`).
+
+Each agent's action mapping, T-S controller, rewards and dones are the batch-first code of
+`madsim.agents.batched` (what make_vec runs over its episodes), here a batch of one per agent.
 """
 
 from __future__ import annotations
@@ -34,12 +38,15 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from madsim.agents.batched import ActionMap, ComponentBatch, weighted_sum
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
 from madsim.agents.observations import ObservationBuilder
-from madsim.agents.pid import PIDController, TrackSpeedController, speed_gear
+from madsim.agents.pid import PIDController, speed_gear
+from madsim.agents.sensor_row import SensorRow
 from madsim.agents.rewards import TICK_S, RewardSet
+from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import LocalBackend
 from madsim.envs.config import (
     AgentConfig,
@@ -50,35 +57,13 @@ from madsim.envs.config import (
     load_config,
 )
 from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
-from madsim.physics.sensors import INT_FIELDS, SENSOR_OFFSETS
+from madsim.physics.sensors import O_SX
 
 __all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
 
-_FIELDS = {name: (o, w, name in INT_FIELDS) for name, (o, w) in SENSOR_OFFSETS.items()}
 _STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
-
-
-class SensorRow(Mapping):
-    """One car's SCR sensors by name, read from its wire-order values (a list of 79 floats)
-    without building a dict: scalars as float (damage, gear, racePos as int), arrays as
-    lists; the same values as `SensorFrame.row(k)`."""
-
-    __slots__ = ("values",)
-
-    def __init__(self, values: list):
-        self.values = values
-
-    def __getitem__(self, name: str):
-        o, w, is_int = _FIELDS[name]
-        if w == 1:
-            return int(self.values[o]) if is_int else self.values[o]
-        return self.values[o:o + w]
-
-    def __iter__(self):
-        return iter(_FIELDS)
-
-    def __len__(self) -> int:
-        return len(_FIELDS)
+_SLOT0 = np.zeros(1, dtype=np.int64)
+_HIT, _NO_HIT = np.ones(1, dtype=bool), np.zeros(1, dtype=bool)
 
 
 def default_traffic_factory() -> Callable[[TrafficConfig], Any]:
@@ -120,26 +105,28 @@ class _Driver:
     def __init__(self, agent: AgentConfig, cfg: ScenarioConfig, space: gymnasium.spaces.Box):
         s = cfg.server
         self.name = agent.name
-        self.low = [float(v) for v in space.low]
-        self.high = [float(v) for v in space.high]
-        self.dim = len(self.low)
+        self.dim = space.shape[0]
         self.ts = agent.action.space == "TS"
-        self.normalised = agent.action.normalised
-        self.manual = agent.gear == "manual"
         self.noise_std = float(agent.action_noise_std)
-        self.rewards = RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed)
-        self.dones = DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
-                                        track_limits=s.track_limits,
-                                        target_speed=agent.target_speed)
-        self.controller = None
-        if self.ts:
-            self.controller = TrackSpeedController(
-                PIDController.from_config(agent.pid), target_speed=agent.target_speed,
-                track_limits=s.track_limits, normalised=self.normalised)
-        self.ticks = agent.pid.latency if self.ts else 1
-        self.info = {"track_length": 0.0, "collision": False}
-        self._sab = _STOP
-        self._gear = 1.0
+        self.target_speed = float(agent.target_speed)
+        self.actions = ActionMap(space.low, space.high, ts=self.ts,
+                                 normalised=agent.action.normalised,
+                                 manual=agent.gear == "manual",
+                                 pid=PIDController.from_config(agent.pid),
+                                 track_limits=s.track_limits, n=1)
+        rewards = RewardSet.from_terms(agent.rewards, target_speed=agent.target_speed).components
+        dones = DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
+                                   track_limits=s.track_limits,
+                                   target_speed=agent.target_speed).components
+        self.reward_names = [name for name, _, _ in rewards]
+        self.weights = np.array([w for _, w, _ in rewards], dtype=np.float64)
+        self.reward_components = [c for _, _, c in rewards]
+        self.rewards = ComponentBatch(self.reward_components, 1)
+        self.done_names = [name for name, _ in dones]
+        self.truncation = [c.truncation for _, c in dones]
+        self.done_components = [c for _, c in dones]
+        self.dones = ComponentBatch(self.done_components, 1)
+        self._length = np.zeros(1)
 
     def check(self, action) -> list[float]:
         """The action as a list of floats clipped into the Box; ValueError if malformed."""
@@ -155,43 +142,38 @@ class _Driver:
             if not math.isfinite(v):
                 raise ValueError(f"action for agent {self.name!r} has a non-finite value at "
                                  f"index {i}: {v}")
-        return [min(h, max(lo, v)) for v, lo, h in zip(values, self.low, self.high)]
+        return self.actions.clip(a).tolist()
 
     def begin(self, action: list[float], rng: np.random.Generator) -> None:
         """Take this step's (checked) action: add noise, map to controls / PID targets."""
-        if self.noise_std > 0.0:
-            noise = rng.normal(0.0, self.noise_std, self.dim).tolist()
-            action = [min(h, max(lo, v + e))
-                      for v, e, lo, h in zip(action, noise, self.low, self.high)]
-        if self.manual:
-            g = action[-1]
-            self._gear = float(round(-1.0 + 3.5 * (g + 1.0)) if self.normalised else round(g))
-        if self.ts:
-            self.controller.set_action(action)
-        elif self.normalised:
-            self._sab = (action[0], (action[1] + 1.0) / 2.0, (action[2] + 1.0) / 2.0)
-        else:
-            self._sab = (action[0], action[1], action[2])
+        self.actions.begin(_SLOT0, np.array([action]), [rng])
 
-    def fill(self, u: np.ndarray, row: SensorRow) -> None:
-        """Write the controls of the coming tick into u (5,) from the latest sensors."""
-        if self.ts:
-            c = self.controller.act(row)
-            u[0], u[1], u[2], u[3] = c[0], c[1], c[2], c[3]
-        else:
-            u[0], u[1], u[2] = self._sab
-            u[3] = speed_gear(row["speedX"])
-        if self.manual:
-            u[3] = self._gear
+    def fill(self, u: np.ndarray, row: np.ndarray) -> None:
+        """Write the controls of the coming tick into u (5,) from the latest sensors (79,)."""
+        u[:4] = self.actions.controls(_SLOT0, row[None, :])[0]
 
-    def reset(self, row: SensorRow, track_length: float) -> None:
-        self.rewards.reset()
-        self.dones.reset()
-        if self.controller is not None:
-            self.controller.reset(row)
-        self.info["track_length"] = float(track_length)
-        self.info["collision"] = False
-        self._sab = _STOP
+    def reset(self, row: np.ndarray, track_length: float) -> None:
+        """Start an episode from the agent's first sensor row (79,) on a track of length m."""
+        self.rewards.start(0, self.reward_components, track_length)
+        self.dones.start(0, self.done_components, track_length)
+        self.actions.start(0, row, self.target_speed, self.noise_std)
+        self._length[0] = track_length
+
+    def score(self, prev: np.ndarray, cur: np.ndarray, action: list[float], collision: bool):
+        """(reward, terms by name, terminated, truncated, dones fired) of one tick from the
+        rows (1, 79) before and after it (madsim.agents.batched: the envs' one code path)."""
+        hit = _HIT if collision else _NO_HIT
+        actions = [action]
+        total, terms = weighted_sum(self.rewards.evaluate(_SLOT0, prev, cur, self._length, hit,
+                                                          actions), self.weights)
+        terms = dict(zip(self.reward_names, terms[:, 0].tolist()))
+        fired = self.dones.evaluate(_SLOT0, prev, cur, self._length, hit, actions)[:, 0].tolist()
+        if not any(fired):
+            return float(total[0]), terms, False, False, ()
+        names = tuple(n for n, f in zip(self.done_names, fired) if f)
+        term = any(f and not t for f, t in zip(fired, self.truncation))
+        trunc = any(f and t for f, t in zip(fired, self.truncation))
+        return float(total[0]), terms, term, trunc, names
 
 
 @dataclasses.dataclass
@@ -244,6 +226,7 @@ class MadrasCore:
         self.resets = 0
         self.live: list[str] = []
         self.plan: EpisodePlan | None = None
+        self.fleet = TrafficFleet(0)
         self.stage: _Stage = self._stage(0)
 
     # --- configuration per curriculum stage -----------------------------------------------
@@ -319,20 +302,24 @@ class MadrasCore:
                                    noisy=cfg.server.observation_noise,
                                    rng=np.random.default_rng(obs_ss))
         self.frame = frame
-        self.rows = [SensorRow(v) for v in frame.flat.tolist()]
         self.controls = np.zeros((len(plan.cars), 5))
         self.agent_rows = {name: plan.row(name) for name in plan.agents}
         self.behaviours = [self._behaviour(stage, j) for j in range(plan.n_traffic)]
+        if self.fleet.n != len(plan.cars):
+            self.fleet = TrafficFleet(len(plan.cars))
+        self.fleet.clear(slice(None))
         for j, (b, ss) in enumerate(zip(self.behaviours, traffic_ss.spawn(plan.n_traffic))):
             b.reset(np.random.default_rng(ss), {
                 "track_length": track.length, "track_width": track.width, "index": j,
                 "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
                 "placement": (float(where[j, 0]), float(where[j, 1]))})
+            self.fleet.put(j, b)
+        self._traffic_rows = np.arange(plan.n_traffic)
         self.live = list(plan.agents)
         self.tick = 0
         self._init_wait(cfg.server.init_wait * self.ticks_per_step)
         for name in self.live:
-            stage.drivers[name].reset(self.rows[self.agent_rows[name]], track.length)
+            stage.drivers[name].reset(self.frame.flat[self.agent_rows[name]], track.length)
         if self.hub is not None:
             self.hub.reset()
         shared = {"seed": plan.seed, "episode": plan.episode, "stage": self.stage_index(),
@@ -347,27 +334,27 @@ class MadrasCore:
         obs = {name: self._observe(name, self.frame, self.agent_rows[name]) for name in self.live}
         return obs, infos
 
+    @property
+    def rows(self) -> list[SensorRow]:
+        """The latest sensors of every car, as SensorRows (by car row)."""
+        return [SensorRow(v) for v in self.frame.flat.tolist()]
+
     def _init_wait(self, ticks: int) -> None:
         """MADRaS devel's init_wait: learners hold the stop action, traffic drives."""
         for _ in range(ticks):
             for name in self.live:
                 k = self.agent_rows[name]
                 self.controls[k, :3] = _STOP
-                self.controls[k, 3] = speed_gear(self.rows[k]["speedX"])
-            self._traffic_controls()
+                self.controls[k, 3] = speed_gear(self.frame.flat[k, O_SX])
+            self._traffic_controls(self.frame)
             frame = self.backend.step(self.controls)
             if frame is None:
                 raise ConnectionError("the simulator ended the race during init_wait")
             self.frame = frame
-            self.rows = [SensorRow(v) for v in frame.flat.tolist()]
 
-    def _traffic_controls(self, rows=None) -> None:
-        """Traffic controls for the coming tick from the latest sensor rows (default self.rows)."""
-        u = self.controls
-        rows = self.rows if rows is None else rows
-        for j, b in enumerate(self.behaviours):
-            steer, accel, brake, gear = b.act(rows[j])
-            u[j, 0], u[j, 1], u[j, 2], u[j, 3] = steer, accel, brake, gear
+    def _traffic_controls(self, frame) -> None:
+        """Traffic controls for the coming tick from the latest sensors (one fleet call)."""
+        self.fleet.act(frame.flat, self.controls, self._traffic_rows)
 
     def _observe(self, name: str, frame, k: int) -> np.ndarray:
         obs = self.builders[name].from_frame(frame, k)
@@ -391,8 +378,9 @@ class MadrasCore:
             if name not in actions:
                 raise ValueError(f"no action for live agent {name!r}")
             chosen[name] = drivers[name].check(actions[name])
-        rows, agent_rows = self.rows, self.agent_rows
+        agent_rows = self.agent_rows
         if self.hub is not None:
+            rows = self.rows
             self.hub.send({n: rows[agent_rows[n]] for n in self.live}, chosen)
         for name in self.live:
             drivers[name].begin(chosen[name], self.action_rng)
@@ -404,9 +392,9 @@ class MadrasCore:
         frame = self.frame
         for _ in range(self.ticks_per_step):
             for name, drv, k, st in running:
-                drv.fill(u[k], rows[k])
+                drv.fill(u[k], frame.flat[k])
             if self.behaviours:
-                self._traffic_controls(rows)     # this tick's rows, not the step's first
+                self._traffic_controls(frame)    # this tick's sensors, not the step's first
             new = backend.step(u)
             self.tick += 1
             if new is None:                          # the server ended the race
@@ -414,16 +402,14 @@ class MadrasCore:
                     st[3], st[4], st[5] = True, ("ServerEnded",), frame
                 running = []
                 break
-            frame = new
-            new_rows = [SensorRow(v) for v in frame.flat.tolist()]
+            prev_flat, frame = frame.flat, new
             hits = backend.collisions()
             still = []
             for entry in running:
                 name, drv, k, st = entry
-                prev, cur = rows[k], new_rows[k]
-                info = drv.info
-                info["collision"] = bool(hits[k]) if hits is not None else False
-                r, terms = drv.rewards(prev, cur, chosen[name], info)
+                collision = bool(hits[k]) if hits is not None else False
+                r, terms, term, trunc, fired = drv.score(prev_flat[k:k + 1], frame.flat[k:k + 1],
+                                                         chosen[name], collision)
                 st[0] += r
                 if st[1] is None:
                     st[1] = terms
@@ -432,18 +418,16 @@ class MadrasCore:
                     for key, v in terms.items():
                         acc[key] += v
                 st[6] += 1
-                term, trunc, fired = drv.dones(prev, cur, chosen[name], info)
                 if term or trunc:
-                    st[2], st[3], st[4], st[5] = term, trunc, tuple(fired), frame
+                    st[2], st[3], st[4], st[5] = term, trunc, fired, frame
                     u[k, :3] = _STOP
                     u[k, 4] = 0.0
                 else:
                     still.append(entry)
-            rows = new_rows
             running = still
             if not running:
                 break
-        self.rows, self.frame = rows, frame
+        self.frame = frame
         for name, drv, k, st in running:
             st[5] = frame
         obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}

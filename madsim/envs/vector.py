@@ -2,19 +2,22 @@
 
 `MadrasVectorEnv` runs N independent copies of a one-learner scenario in one
 `madsim.physics.batch.WorldBatch`: every tick advances all running episodes (and computes their
-sensors) in one compiled call, and the agent side (actions, the T-S PID, observations, rewards,
-dones) is done with numpy over the episodes. Each episode keeps its own track, cars, traffic,
+sensors) in one compiled call, the traffic cars of all episodes are driven by one compiled call
+(madsim.agents.traffic_fleet), the built-in rewards and dones are one compiled call each
+(madsim.agents.batched.ComponentBatch, the same code MadrasEnv runs), and the rest of the
+agent side (actions, the T-S PID, observations) is numpy over the episodes. Each episode keeps its own track, cars, traffic,
 random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
 `MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
 `gymnasium.vector.SyncVectorEnv` over `MadrasEnv`s). What stays in Python, per episode: resets
-(~0.3 ms each), traffic behaviours (one `act` per traffic car and tick), observation noise and
-focus readings, action noise draws, reward/done components registered without a batched form
-here, and contact resolution (only when the broad phase finds something near).
+(~0.3 ms each), observation noise and focus readings, action noise draws, user-defined
+(registered) rewards, dones and traffic targets, and contact resolution (only when the broad
+phase finds something near).
 
 Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
-Speed (benchmarks/bench_vector.py): ~100,000 env-steps/s from N = 64 up on one core of this
-project's 2-core machine, most of it physics; for a single episode `MadrasEnv` is faster (the
-numpy bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
+Speed (benchmarks/bench_vector.py, per CPU-second of one core of this project's 2-core
+machine): ~120,000 env-steps/s at N = 1024, ~28,000 with four traffic cars per episode, most of
+it physics; for a single episode `MadrasEnv` is faster (the numpy bookkeeping costs ~150 us per
+step whatever N). threads=True shares the compiled part
 among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
 Not supported: scenarios with more than one learning agent or with communication (ConfigError);
 rendering.
@@ -22,7 +25,6 @@ rendering.
 
 from __future__ import annotations
 
-import copy
 from typing import Any, ClassVar
 
 import numpy as np
@@ -32,13 +34,14 @@ from gymnasium.vector.utils import batch_space
 
 from madsim.agents import dones as D
 from madsim.agents import rewards as R
-from madsim.agents.batched import BATCHED, Batched, BatchedTS, speed_gear_many
+from madsim.agents.batched import ActionMap, ComponentBatch, speed_gear_many, weighted_sum
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
+from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
 from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_config
-from madsim.envs.core import SensorRow, default_traffic_factory, episode_seed
+from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
 from madsim.physics.batch import WorldBatch
 from madsim.physics.sensors import (
@@ -56,34 +59,6 @@ def make_vec(config=None, num_envs: int = 1, **kwargs) -> MadrasVectorEnv:
     scenario stepped as one batch. Keywords: traffic_factory, autoreset_mode ("NextStep",
     "SameStep", "Disabled"), contact, fuel, damage, threads (see `MadrasVectorEnv`)."""
     return MadrasVectorEnv(config, num_envs, **kwargs)
-
-
-class _Scalar(Batched):
-    """A component without a batched form (e.g. one added with register_reward): one copy of
-    the scalar object per episode, called with SensorRows, episode by episode."""
-
-    def __init__(self, n: int, cast):
-        super().__init__(n)
-        self.cast = cast
-        self.objects: list = [None] * n
-        self.actions: list = []         # the step's checked actions of the episodes called
-
-    def start(self, e, comp, length):
-        obj = copy.deepcopy(comp)
-        obj.reset()
-        self.objects[e] = obj
-
-    def __call__(self, slots, prev, cur, length, collision):
-        out = np.zeros(slots.shape[0], dtype=self.cast)
-        for i, (e, p, c) in enumerate(zip(slots.tolist(), prev.tolist(), cur.tolist())):
-            info = {"track_length": float(length[i]), "collision": bool(collision[i])}
-            out[i] = self.cast(self.objects[e](SensorRow(p), SensorRow(c), self.actions[i], info))
-        return out
-
-
-def _batched(comp, n: int, cast) -> Batched:
-    cls = BATCHED.get(type(comp))
-    return _Scalar(n, cast) if cls is None else cls(n)
 
 
 class _Stage:
@@ -173,13 +148,14 @@ class MadrasVectorEnv(VectorEnv):
         self.single_observation_space = self.builder.space
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
-        self._low = self.single_action_space.low.astype(np.float64)
-        self._high = self.single_action_space.high.astype(np.float64)
-        self._dim = self._low.shape[0]
-        self._ts = agent.action.space == "TS"
-        self._normalised = agent.action.normalised
-        self._manual = agent.gear == "manual"
-        self.ticks_per_step = agent.pid.latency if self._ts else 1
+        ts = agent.action.space == "TS"
+        self._actions = ActionMap(self.single_action_space.low, self.single_action_space.high,
+                                  ts=ts, normalised=agent.action.normalised,
+                                  manual=agent.gear == "manual",
+                                  pid=PIDController.from_config(agent.pid), track_limits=limits,
+                                  n=n)
+        self._dim = self._actions.dim
+        self.ticks_per_step = agent.pid.latency if ts else 1
 
         stage_cfgs = [cfg] if cfg.curriculum is None else [
             apply_stage(cfg, st) for st in cfg.curriculum.stages]
@@ -190,13 +166,13 @@ class MadrasVectorEnv(VectorEnv):
         if self._factory is None and capacity > 1 and any(c.traffic for c in stage_cfgs):
             self._factory = default_traffic_factory()
         first = self._stages[0]
-        self._rewards = [(name, w, _batched(c, n, float))
-                         for name, w, c in first.rewards.components]
-        self._dones = [(name, c.truncation, _batched(c, n, bool))
-                       for name, c in first.dones.components]
-        self._scalar = any(isinstance(b, _Scalar) for _, _, b in self._rewards + self._dones)
-        self._pid = (BatchedTS(PIDController.from_config(agent.pid), limits, self._normalised, n)
-                     if self._ts else None)
+        self._reward_names = [name for name, _, _ in first.rewards.components]
+        self._weights = np.array([w for _, w, _ in first.rewards.components], dtype=np.float64)
+        self._rewards = ComponentBatch([c for _, _, c in first.rewards.components], n)
+        self._done_names = [name for name, _ in first.dones.components]
+        self._is_trunc = np.array([c.truncation for _, c in first.dones.components], dtype=bool)
+        self._dones = ComponentBatch([c for _, c in first.dones.components], n)
+        self._scalar = bool(self._rewards.python or self._dones.python)
         needs_focus = "focus" in self.builder.fields
         self.batch = WorldBatch(n, capacity, contact=contact, fuel=fuel, damage=damage,
                                 threads=threads, focus=needs_focus,
@@ -206,7 +182,8 @@ class MadrasVectorEnv(VectorEnv):
         # per episode
         self._np_random: list = [None] * n         # each episode's gymnasium Env.np_random
         self._action_rng: list = [None] * n
-        self._behaviours: list[list] = [[] for _ in range(n)]
+        self.fleet = TrafficFleet(self.batch.sensors.shape[0])   # traffic rows of the batch
+        self._traffic_rows = np.arange(capacity - 1)               # traffic: rows 0 .. n - 2
         self._behaviour_cache: dict = {}           # (episode, stage, entry) -> behaviour
         self._n_traffic = np.zeros(n, dtype=np.int64)
         self._stage_of = np.zeros(n, dtype=np.int64)
@@ -215,9 +192,6 @@ class MadrasVectorEnv(VectorEnv):
         self._progress = np.zeros(n, dtype=np.int64)
         self._row = np.zeros(n, dtype=np.int64)    # the learner's row in the batch
         self._length = np.zeros(n)
-        self._noise_std = np.zeros(n)
-        self._sab = np.tile(_STOP, (n, 1))
-        self._gear = np.ones(n)
         self._live = np.zeros(n, dtype=bool)
         self._started = False
         self._obs = np.zeros((n, self.builder.size), dtype=np.float32)
@@ -299,13 +273,10 @@ class MadrasVectorEnv(VectorEnv):
         for e, info in zip(slots.tolist(), started):
             st = self._stages[self._stage_of[e]]
             length = self._length[e]
-            for (_, _, b), (_, _, c) in zip(self._rewards, st.rewards.components):
-                b.start(e, c, length)
-            for (_, _, b), (_, c) in zip(self._dones, st.dones.components):
-                b.start(e, c, length)
-            if self._pid is not None:
-                self._pid.reset(e, batch.sensors[self._row[e]], st.agent.target_speed)
-            self._sab[e] = _STOP
+            self._rewards.start(e, [c for _, _, c in st.rewards.components], length)
+            self._dones.start(e, [c for _, c in st.dones.components], length)
+            self._actions.start(e, batch.sensors[self._row[e]], st.agent.target_speed,
+                                st.agent.action_noise_std)
             infos = self._add_info(infos, info, e)
         self._obs[slots] = self._observe(rows)
         self._live[slots] = True
@@ -328,8 +299,8 @@ class MadrasVectorEnv(VectorEnv):
         k = plan.row(self.agent)
         self._row[e] = self.batch.offsets[e] + k
         self._length[e] = track.length
-        self._noise_std[e] = stage.agent.action_noise_std
-        behaviours = []
+        a = int(self.batch.offsets[e])
+        self.fleet.clear(slice(a, a + self.batch.capacity))
         for j, ss in enumerate(traffic_ss.spawn(plan.n_traffic)):
             b = self._behaviour_cache.get((e, stage_i, j))
             if b is None:
@@ -338,9 +309,8 @@ class MadrasVectorEnv(VectorEnv):
                 "track_length": track.length, "track_width": track.width, "index": j,
                 "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
                 "placement": (float(where[j, 0]), float(where[j, 1]))})
-            behaviours.append(b)
-        self._behaviours[e] = behaviours
-        self._n_traffic[e] = len(behaviours)
+            self.fleet.put(a + j, b)
+        self._n_traffic[e] = plan.n_traffic
         return {"seed": plan.seed, "episode": plan.episode, "stage": stage_i,
                 "track": plan.track, "track_length": float(track.length), "cars": plan.cars,
                 "traffic": tuple(t.behaviour for t in plan.traffic),
@@ -348,14 +318,11 @@ class MadrasVectorEnv(VectorEnv):
                 "placement": (float(where[k, 0]), float(where[k, 1]))}
 
     def _traffic_controls(self, slots) -> None:
-        u, flat = self.batch.controls, self.batch.sensors
-        for e in slots.tolist():
-            behaviours = self._behaviours[e]
-            if behaviours:
-                a = int(self.batch.offsets[e])
-                for j, values in enumerate(flat[a:a + len(behaviours)].tolist()):
-                    steer, accel, brake, gear = behaviours[j].act(SensorRow(values))
-                    u[a + j, 0], u[a + j, 1], u[a + j, 2], u[a + j, 3] = steer, accel, brake, gear
+        """Controls of the traffic cars of episodes `slots`, one fleet call."""
+        rows = (self.batch.offsets[slots][:, None] + self._traffic_rows).ravel()
+        rows = rows[self.fleet.kind[rows] != 0]
+        if rows.size:
+            self.fleet.act(self.batch.sensors, self.batch.controls, rows)
 
     def _observe(self, rows: np.ndarray) -> np.ndarray:
         """ObservationBuilder.from_wire over many rows (the same arithmetic, row by row)."""
@@ -393,7 +360,7 @@ class MadrasVectorEnv(VectorEnv):
                 i, j = np.argwhere(bad)[0]
                 raise ValueError(f"action for episode {slots[i]} has a non-finite value at "
                                  f"index {j}: {chosen[i, j]}")
-            chosen = np.minimum(self._high, np.maximum(self._low, chosen))
+            chosen = self._actions.clip(chosen)
             infos = self._step_slots(slots, chosen, rewards, terminated, truncated)
         if resetting.any() and self.autoreset_mode == AutoresetMode.NEXT_STEP:
             infos = self._merge(infos, self._reset_slots(np.flatnonzero(resetting),
@@ -414,31 +381,13 @@ class MadrasVectorEnv(VectorEnv):
         u, flat, hits = batch.controls, batch.sensors, batch.hits
         if self._scalar:
             checked = chosen.tolist()       # what MadrasCore hands to rewards and dones
-        noisy = np.flatnonzero(self._noise_std[slots] > 0.0)
-        if noisy.size:
-            noise = np.zeros_like(chosen)
-            for i in noisy.tolist():
-                e = slots[i]
-                noise[i] = self._action_rng[e].normal(0.0, self._noise_std[e], self._dim)
-            moved = chosen[noisy] + noise[noisy]
-            chosen[noisy] = np.minimum(self._high, np.maximum(self._low, moved))
-        if self._manual:
-            g = chosen[:, -1]
-            # Python's round() and np.round both round halves to even
-            self._gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self._normalised else g)
-        if self._ts:
-            self._pid.set_action(slots, chosen)
-        elif self._normalised:
-            self._sab[slots] = np.stack([chosen[:, 0], (chosen[:, 1] + 1.0) / 2.0,
-                                         (chosen[:, 2] + 1.0) / 2.0], axis=1)
-        else:
-            self._sab[slots] = chosen[:, :3]
+        self._actions.begin(slots, chosen, self._action_rng)
         m = slots.shape[0]
         total = np.zeros(m)
         terms = None
         ticks = np.zeros(m, dtype=np.int64)
         term, trunc = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
-        fired = np.zeros((m, len(self._dones)), dtype=bool)
+        fired = np.zeros((m, len(self._done_names)), dtype=bool)
         running = np.arange(m)
         mask = np.zeros(self.num_envs, dtype=bool)
         traffic = bool(self._n_traffic[slots].any())
@@ -446,11 +395,7 @@ class MadrasVectorEnv(VectorEnv):
             run = slots[running]
             rows = self._row[run]
             prev = flat[rows]
-            if self._ts:
-                u[rows, 0], u[rows, 1], u[rows, 2] = self._pid.act(run, prev)
-            else:
-                u[rows, :3] = self._sab[run]
-            u[rows, 3] = self._gear[run] if self._manual else speed_gear_many(prev[:, O_SX])
+            u[rows, :4] = self._actions.controls(run, prev)
             if traffic:
                 self._traffic_controls(run)
             mask[:] = False
@@ -459,32 +404,18 @@ class MadrasVectorEnv(VectorEnv):
             cur = flat[rows]
             length = self._length[run]
             collision = hits[rows]
-            if self._scalar:
-                for _, _, comp in self._rewards + self._dones:
-                    if isinstance(comp, _Scalar):
-                        comp.actions = [checked[i] for i in running.tolist()]
-            r = np.zeros(run.shape[0])
-            values = []
-            for _, weight, comp in self._rewards:
-                v = weight * comp(run, prev, cur, length, collision)
-                values.append(v)
-                r += v
+            actions = [checked[i] for i in running.tolist()] if self._scalar else None
+            r, values = weighted_sum(self._rewards.evaluate(run, prev, cur, length, collision,
+                                                            actions), self._weights)
             total[running] += r
             if terms is None:
                 terms = values
             else:
-                for acc, v in zip(terms, values):
-                    acc[running] += v
+                terms[:, running] += values
             ticks[running] += 1
-            d_term = np.zeros(run.shape[0], dtype=bool)
-            d_trunc = np.zeros(run.shape[0], dtype=bool)
-            d_fired = np.empty((run.shape[0], len(self._dones)), dtype=bool)
-            for j, (_, is_trunc, comp) in enumerate(self._dones):
-                d_fired[:, j] = hit = comp(run, prev, cur, length, collision)
-                if is_trunc:
-                    d_trunc |= hit
-                else:
-                    d_term |= hit
+            d_fired = self._dones.evaluate(run, prev, cur, length, collision, actions).T != 0.0
+            d_term = (d_fired & ~self._is_trunc).any(axis=1)
+            d_trunc = (d_fired & self._is_trunc).any(axis=1)
             done = d_term | d_trunc
             if done.any():
                 which = running[done]
@@ -506,14 +437,16 @@ class MadrasVectorEnv(VectorEnv):
         stepped = np.zeros(n, dtype=bool)
         stepped[slots] = True
         reward_terms: dict = {}
-        for (name, _, _), v in zip(self._rewards, terms or [np.zeros(m)] * len(self._rewards)):
+        if terms is None:
+            terms = np.zeros((len(self._reward_names), m))
+        for name, v in zip(self._reward_names, terms):
             full = np.zeros(n)
             full[slots] = v
             reward_terms[name] = full
             reward_terms["_" + name] = stepped.copy()
         dones = self._dones_template.copy()
         dones[~stepped] = None
-        names = [name for name, _, _ in self._dones]
+        names = self._done_names
         for i in np.flatnonzero(fired.any(axis=1)).tolist():
             dones[slots[i]] = tuple(nm for nm, f in zip(names, fired[i]) if f)
         all_ticks = np.zeros(n, dtype=np.int64)
