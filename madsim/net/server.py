@@ -121,6 +121,7 @@ class ScrServer:
         self.cars: list[_Car] = []
         self.world = None
         self._race_ticks = 0          # world ticks of the current race
+        self._warm = False            # kernels loaded (warm_up ran) in this process
 
     # --- sockets ----------------------------------------------------------------------------
 
@@ -222,6 +223,9 @@ class ScrServer:
                 writer = csv.writer(csv_file)
                 writer.writerow(CSV_FIELDS)
             while not self._stop:
+                if not self._warm:
+                    warm_up(self.make_world(self.seed), self.noisy)
+                    self._warm = True
                 world = self.make_world(self.seed)   # before the clients, as TORCS loads first
                 if not self.identify_all():
                     break
@@ -490,6 +494,29 @@ class ScrServer:
                              int(col("laps")[i]), f"{frame.curLapTime[i]:.3f}", f"{frame.lastLapTime[i]:.3f}",
                              int(frame.damage[i]), f"{controls[i, 0]:.5f}", f"{controls[i, 1]:.5f}",
                              f"{controls[i, 2]:.5f}", int(controls[i, 3]), f"{controls[i, 4]:.5f}"])
+
+
+def warm_up(world, noisy: bool = False) -> None:
+    """Run, once, every compiled kernel a race calls, on a throwaway `world` (N cars): sensors
+    with focus and noise, the sub-step loop, the contact solver's narrow phase and response (car
+    0 is put on its barrier), the codec. Numba loads them from its disk cache (or compiles them)
+    now, before any client identifies, so no tick of the race waits for them (a first contact
+    would otherwise stall the race for a cache load, or a compile on a fresh install)."""
+    suite = SensorSuite(world, noisy=noisy, rng=np.random.default_rng(0))
+    cars = np.arange(world.n_cars)
+    suite.request_focus(cars, np.zeros(world.n_cars))
+    controls = np.zeros((world.n_cars, 5))
+    controls[:, 1] = 1.0
+    placements = np.zeros((world.n_cars, 3))
+    placements[:, 0] = 10.0 * cars          # the other cars in line behind, clear of car 0
+    placements[0] = (world.track.length / 2, float(world.track.barrier_left[0]), 10.0)
+    world.reset(placements)
+    for _ in range(2):
+        rows = suite.frame().flat.astype(np.float32)
+        for row in rows:
+            P.encode_sensors_flat(row)
+        world.step(controls)
+    P.decode_controls(b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0")
 
 
 def _port_list(ports: list[int]) -> str:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import importlib
 import importlib.util
 
-import numba
 import numpy as np
 
 from madsim.cars.spec import CarSpec
@@ -29,41 +28,6 @@ TICK = DT * SUBSTEPS
 NAN_POLICIES = ("raise", "zero")
 DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
 """TORCS's damage factor per skill level (spec 4.12), handed to the contact solver."""
-
-
-_STEPPERS: dict = {}
-
-
-def _contact_stepper(broad_phase, parallel: bool = False):
-    """Compiled sub-step loop that stops after the first sub-step at which the contact solver's
-    broad phase finds a car near something (there, and only there, `resolve` has work to do).
-    `parallel`: the cars of each sub-step are shared among numba's threads (they are
-    independent within a sub-step, so results are bit-identical); the broad phase stays serial.
-
-    Built per broad-phase function and not cached on disk: it links the contact module's
-    compiled code, and numba's disk cache would not notice a change of that module.
-    """
-    key = (broad_phase, parallel)
-    stepper = _STEPPERS.get(key)
-    if stepper is None:
-        advance_car = kernel.advance_car
-        s_piece = L.S_PIECE
-
-        @numba.njit(error_model="numpy", parallel=parallel)
-        def stepper(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
-                    x, y, yaw, piece, bp, near):
-            for k in range(k0, nsub):
-                for i in numba.prange(st.shape[0]):
-                    advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
-                for i in range(st.shape[0]):
-                    piece[i] = int(st[i, s_piece])
-                near[0] = broad_phase(x, y, yaw, piece, *bp)
-                if near[0] != 0:
-                    return k + 1
-            return nsub
-
-        _STEPPERS[key] = stepper
-    return stepper
 
 
 def contact_available() -> bool:
@@ -141,7 +105,7 @@ class World:
             self._near = np.zeros(1, dtype=np.int64)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
-            self._stepper = _contact_stepper(self._solver.broad_phase_kernel, parallel)
+            self._stepper = mod.advance_until_near_parallel if parallel else mod.advance_until_near
         self.reset()
 
     # --- set-up -------------------------------------------------------------------------------
