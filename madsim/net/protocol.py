@@ -28,6 +28,10 @@ import re
 import struct
 from typing import Any, Mapping, NamedTuple, Sequence
 
+import numpy as np
+
+from madsim.net import codec_kernels as K
+
 __all__ = [
     "ProtocolError",
     "SensorField",
@@ -50,6 +54,7 @@ __all__ = [
     "SensorEncoder",
     "encode_sensors",
     "encode_sensors_flat",
+    "encode_sensor_rows",
     "decode_sensors",
     "encode_controls",
     "decode_controls",
@@ -278,6 +283,15 @@ class SensorEncoder:
         self._template = "".join(
             "(" + f.name + (" %g" if f.kind == "float" else " %d") * f.width + ")"
             for f in self.fields).encode("ascii") + b"\0"
+        # the compiled path: literal text around each value, int flags, an output buffer
+        pieces = self._template[:-1].split(b"%")
+        literals = [pieces[0]] + [p[1:] for p in pieces[1:]]
+        self._lit = np.frombuffer(b"".join(literals), dtype=np.uint8)
+        self._lit_end = np.cumsum([len(x) for x in literals]).astype(np.int64)
+        self._is_int = np.array([f.kind == "int" for f in self.fields for _ in range(f.width)])
+        self._width = len(self._lit) + self.value_count * K.MAX_VALUE_CHARS + 7
+        self._out = np.zeros((1, self._width), dtype=np.uint8)
+        self._length = np.zeros(1, dtype=np.int64)
 
     def encode(self, values: Mapping[str, Any], img: Any = None) -> bytes:
         """One car's state message from a mapping of SCR name -> value(s); ends with NUL."""
@@ -297,8 +311,29 @@ class SensorEncoder:
             return self._encode_checked(values, img)  # C spelling of nan sign
         return self._finish(self._template % rounded, img)
 
+    def encode_rows(self, rows: np.ndarray) -> list[bytes]:
+        """State messages (each ending with NUL) of every row of `rows` (N, value_count), float32
+        or float64, values in wire order: one compiled call; a row it cannot do exactly (see
+        `madsim.net.codec_kernels`) goes through `encode_flat`'s exact path."""
+        n = rows.shape[0]
+        if self._out.shape[0] < n:
+            self._out = np.zeros((n, self._width), dtype=np.uint8)
+            self._length = np.zeros(n, dtype=np.int64)
+        out, length = self._out, self._length
+        K.encode_rows(rows, self._is_int, self._lit, self._lit_end, self.max_bytes, out, length)
+        return [out[i, :length[i]].tobytes() if length[i] > 0 else self._encode_flat_exact(rows[i], None)
+                for i in range(n)]
+
     def encode_flat(self, row: Any, img: Any = None) -> bytes:
         """One car's state message from all values flattened in wire order; ends with NUL."""
+        if isinstance(row, np.ndarray) and row.shape == (self.value_count,) \
+                and row.dtype in (np.float32, np.float64):
+            msg = self.encode_rows(row[None, :])[0]
+            return msg if img is None else self._finish(msg, img)
+        return self._encode_flat_exact(row, img)
+
+    def _encode_flat_exact(self, row: Any, img: Any) -> bytes:
+        """encode_flat value by value in Python (any sequence; exact C spelling always)."""
         dtype = getattr(row, "dtype", None)
         try:
             flat = row.tolist() if hasattr(row, "tolist") else list(row)
@@ -370,6 +405,12 @@ def encode_sensors(values: Mapping[str, Any], img: Any = None) -> bytes:
 def encode_sensors_flat(row: Any, img: Any = None) -> bytes:
     """SRV13 state message from 79 values in wire order; see SensorEncoder.encode_flat."""
     return _DEFAULT_ENCODER.encode_flat(row, img)
+
+
+def encode_sensor_rows(rows: np.ndarray) -> list[bytes]:
+    """SRV13 state messages of N cars from an (N, 79) array in wire order (one compiled call);
+    see SensorEncoder.encode_rows."""
+    return _DEFAULT_ENCODER.encode_rows(rows)
 
 
 # --- state message, client side -------------------------------------------------------------

@@ -273,9 +273,9 @@ class ScrServer:
                 flat[:, _FOCUS:_FOCUS + 5] = -1.0
             finished = self._race_over(tick, laps, cars)
             late = {} if finished or self.mode == "timeout" else self._take_late(cars)
-            rows = flat.astype(np.float32)     # the codec's fast path; SCR sends C floats anyway
+            messages = self._encode(flat.astype(np.float32))   # SCR sends C floats anyway
             for c in cars:
-                self._send(c, self._encode(rows[c.index]))
+                self._send(c, messages[c.index])
             if finished:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
@@ -309,17 +309,17 @@ class ScrServer:
                     self._send(c, P.RESTART_MESSAGE if c.index == restart_by else P.SHUTDOWN_MESSAGE)
                 return "restart"
 
-    def _encode(self, row: np.ndarray) -> bytes:
-        """One car's state message from its (79,) wire-order sensor row (float32)."""
+    def _encode(self, rows: np.ndarray) -> list[bytes]:
+        """Every car's state message from its (79,) wire-order sensor row (float32)."""
         try:
-            return P.encode_sensors_flat(row)
+            return P.encode_sensor_rows(rows)
         except P.ProtocolError:
             # only pathological values exceed 999 bytes; round the noisy arrays and retry
-            row = row.copy()
+            rows = rows.copy()
             for name in ("track", "opponents", "focus"):
                 o, w = SENSOR_OFFSETS[name]
-                row[o:o + w] = np.round(row[o:o + w], 2)
-            return P.encode_sensors_flat(row)
+                rows[:, o:o + w] = np.round(rows[:, o:o + w], 2)
+            return P.encode_sensor_rows(rows)
 
     def _race_over(self, tick: int, laps: list, cars: list[_Car]) -> bool:
         """Max ticks reached, every car out, or every car still in the race done its laps."""
@@ -512,9 +512,7 @@ def warm_up(world, noisy: bool = False) -> None:
     placements[0] = (world.track.length / 2, float(world.track.barrier_left[0]), 10.0)
     world.reset(placements)
     for _ in range(2):
-        rows = suite.frame().flat.astype(np.float32)
-        for row in rows:
-            P.encode_sensors_flat(row)
+        P.encode_sensor_rows(suite.frame().flat.astype(np.float32))
         world.step(controls)
     P.decode_controls(b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0")
 
