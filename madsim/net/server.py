@@ -25,6 +25,7 @@ import csv
 import os
 import select
 import socket
+import struct
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -137,7 +138,9 @@ class ScrServer:
                 self.close()
                 raise ServerError(f"cannot bind UDP {self.host}:{port}: "
                                   f"{getattr(exc, 'strerror', None) or exc}") from None
-            s.setblocking(False)
+            # blocking reads wait at most client_deadline_s, enforced by the kernel (one
+            # recvfrom per answer, no select); every other read passes MSG_DONTWAIT
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(self.client_deadline_s))
             self.cars.append(_Car(i, s, port, self._controls[i]))
 
     def close(self) -> None:
@@ -159,7 +162,7 @@ class ScrServer:
     def _recv(self, car: _Car):
         """One datagram from the car's socket: (data, addr) or None when nothing is queued."""
         try:
-            return car.sock.recvfrom(65536)
+            return car.sock.recvfrom(65536, socket.MSG_DONTWAIT)
         except (BlockingIOError, InterruptedError):
             return None
         except OSError:
@@ -385,33 +388,48 @@ class ScrServer:
                 for sock, c in list(pending.items()):
                     if now >= deadline[c.index]:
                         if c.sync and tick_end is None:
-                            c.sync = False
-                            self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
-                                     f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
-                                     f"per tick until it answers again")
+                            self._to_timeout_behaviour(c)
                         del pending[sock]
             if tick_end is not None and (rest := tick_end - time.monotonic()) > 0:
                 time.sleep(rest)
         return self._apply(cars, got)
 
     def _collect_sync(self, cars: list[_Car]) -> dict[int, bytes]:
-        """Sync mode, every client answering in time so far (the usual tick): wait for each car's
-        answer until one shared deadline; a car silent past it goes to timeout behaviour."""
+        """Sync mode, every client answering in time so far (the usual tick): one blocking
+        read per car, which the kernel ends after `client_deadline_s` (SO_RCVTIMEO); a car
+        silent that long goes to timeout behaviour."""
         got: dict[int, bytes] = {}
-        deadline = time.monotonic() + self.client_deadline_s
         for c in cars:
-            while (data := self._read_from_client(c)) is None:
-                wait = deadline - time.monotonic()
-                if wait <= 0:
-                    c.sync = False
-                    self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
-                             f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
-                             f"per tick until it answers again")
-                    break
-                select.select([c.sock], [], [], wait)
-            if data is not None:
+            data = self._wait_for_client(c)
+            if data is None:
+                self._to_timeout_behaviour(c)
+            else:
                 got[c.index] = data
         return got
+
+    def _to_timeout_behaviour(self, c: _Car) -> None:
+        c.sync = False
+        self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
+                 f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
+                 f"per tick until it answers again")
+
+    def _wait_for_client(self, c: _Car) -> bytes | None:
+        """c's client's next datagram, waiting up to `client_deadline_s` (None on silence);
+        foreign datagrams are counted and dropped without extending the wait."""
+        end = None
+        while True:
+            try:
+                data, addr = c.sock.recvfrom(65536)
+            except OSError:     # EAGAIN: the deadline passed (or the socket failed)
+                return None
+            if addr == c.addr:
+                return data
+            self.stats.foreign_datagrams += 1
+            now = time.monotonic()
+            if end is None:
+                end = now + self.client_deadline_s
+            elif now >= end:
+                return None
 
     def _apply(self, cars: list[_Car], got: dict[int, bytes]) -> int | None:
         """Decode this tick's answers into each car's controls (silent cars keep theirs);
@@ -496,6 +514,14 @@ class ScrServer:
                              f"{controls[i, 2]:.5f}", int(controls[i, 3]), f"{controls[i, 4]:.5f}"])
 
 
+def _timeval(seconds: float) -> bytes:
+    """struct timeval for SO_RCVTIMEO (all zero, "wait forever", for an infinite deadline)."""
+    if not seconds < 1e7:
+        return struct.pack("ll", 0, 0)
+    usec = max(1, round(max(seconds, 0.0) * 1e6))
+    return struct.pack("ll", usec // 1_000_000, usec % 1_000_000)
+
+
 def warm_up(world, noisy: bool = False) -> None:
     """Run, once, every compiled kernel a race calls, on a throwaway `world` (N cars): sensors
     with focus and noise, the sub-step loop, the contact solver's narrow phase and response (car
@@ -507,12 +533,13 @@ def warm_up(world, noisy: bool = False) -> None:
     suite.request_focus(cars, np.zeros(world.n_cars))
     controls = np.zeros((world.n_cars, 5))
     controls[:, 1] = 1.0
+    P.encode_sensor_rows(suite.frame().flat.astype(np.float32))   # on the grid: focus read
+    world.step(controls)
     placements = np.zeros((world.n_cars, 3))
     placements[:, 0] = 10.0 * cars          # the other cars in line behind, clear of car 0
     placements[0] = (world.track.length / 2, float(world.track.barrier_left[0]), 10.0)
     world.reset(placements)
     for _ in range(2):
-        P.encode_sensor_rows(suite.frame().flat.astype(np.float32))
         world.step(controls)
     P.decode_controls(b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0")
 
