@@ -30,6 +30,7 @@ from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
+from madsim import facts as F
 from madsim.net import codec_kernels as K
 
 __all__ = [
@@ -92,35 +93,21 @@ class SensorField(NamedTuple):
     kind: str
 
 
-def _fields(spec: str) -> tuple[SensorField, ...]:
-    out = []
-    for item in spec.split():
-        name, width, kind = item.split(":")
-        out.append(SensorField(name, int(width), kind))
-    return tuple(out)
-
-
-SENSOR_FIELDS = _fields(
-    "angle:1:float curLapTime:1:float damage:1:int distFromStart:1:float distRaced:1:float "
-    "fuel:1:float gear:1:int lastLapTime:1:float opponents:36:float racePos:1:int rpm:1:float "
-    "speedX:1:float speedY:1:float speedZ:1:float track:19:float trackPos:1:float "
-    "wheelSpinVel:4:float z:1:float focus:5:float"
-)
-"""Fields of the SRV13 state message in wire order (§5); gear, racePos, damage are C ints."""
+SENSOR_FIELDS = tuple(SensorField(f.name, f.width, f.kind) for f in F.SCR_FIELDS)
+"""Fields of the SRV13 state message in wire order (§5, `madsim.facts.SCR_FIELDS`); gear,
+racePos, damage are C ints."""
 
 VISION_SENSOR_FIELDS = (
     SENSOR_FIELDS[:4] + (SensorField("totalDistFromStart", 1, "float"),) + SENSOR_FIELDS[4:]
 )
 """gym_torcs' vtorcs variant (SRVVIS): `totalDistFromStart` after `distFromStart` (§5)."""
 
-SENSOR_VALUE_COUNT = sum(f.width for f in SENSOR_FIELDS)  # 79 numbers per state message
+SENSOR_VALUE_COUNT = F.SCR_VALUE_COUNT  # 79 numbers per state message
 
-DEFAULT_ANGLES_DEG = tuple(-90.0 + 10.0 * i for i in range(19))
+DEFAULT_ANGLES_DEG = F.SCR_SERVER_DEFAULT_ANGLES_DEG
 """Rangefinder angles the server uses when `(init ...)` is missing or short (§3.3)."""
-CPP_CLIENT_ANGLES_DEG = (-90.0, -75.0, -60.0, -45.0, -30.0, -20.0, -15.0, -10.0, -5.0, 0.0,
-                         5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0)
-SNAKEOIL_ANGLES_DEG = (-45.0, -19.0, -12.0, -7.0, -4.0, -2.5, -1.7, -1.0, -0.5, 0.0,
-                       0.5, 1.0, 1.7, 2.5, 4.0, 7.0, 12.0, 19.0, 45.0)
+CPP_CLIENT_ANGLES_DEG = F.SCR_CPP_CLIENT_ANGLES_DEG
+SNAKEOIL_ANGLES_DEG = F.SNAKEOIL_ANGLES_DEG
 
 IDENTIFIED = b"***identified***"
 RESTART = b"***restart***"

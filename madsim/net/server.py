@@ -33,10 +33,10 @@ from typing import Callable
 
 import numpy as np
 
+from madsim.facts import TICK_S
 from madsim.net import protocol as P
 from madsim.physics.sensors import FOCUS_NONE, SENSOR_OFFSETS, SensorSuite
 
-TICK_S = 0.02
 MODES = ("sync", "timeout", "realtime")
 COUNTDOWN_TICKS = 49          # TORCS polls robots ~49 times during the start countdown (§4.3)
 MAX_DAMAGE = 10000.0          # a car above this is out of the race (TORCS default)

@@ -14,16 +14,17 @@ import importlib.util
 import numpy as np
 
 from madsim.cars.spec import CarSpec
+from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
 from madsim.physics import kernel
 from madsim.physics import layout as L
 from madsim.physics.tables import SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
 
-DT = 0.002
+DT = SUBSTEP_S
 """Physics sub-step, s (TORCS's simulation step)."""
-SUBSTEPS = 10
+SUBSTEPS = SUBSTEPS_PER_TICK
 """Sub-steps per tick: controls are held for DT * SUBSTEPS = 0.02 s."""
-TICK = DT * SUBSTEPS
+TICK = TICK_S
 
 NAN_POLICIES = ("raise", "zero")
 DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
