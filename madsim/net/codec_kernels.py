@@ -189,3 +189,136 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
             length[i] = pos + 1
         else:
             length[i] = -1
+
+
+# --- control messages ------------------------------------------------------------------------------
+
+# The tags of the two stock layouts, in order: C++ client / pyScrcClient, and snakeoil.
+CPP_ORDER = (b"accel", b"brake", b"gear", b"steer", b"clutch", b"focus", b"meta")
+SNAKEOIL_ORDER = (b"accel", b"brake", b"clutch", b"gear", b"steer", b"focus", b"meta")
+INT_TAGS = (b"gear", b"focus", b"meta")
+OUT_SLOT = {b"steer": 0, b"accel": 1, b"brake": 2, b"gear": 3, b"clutch": 4, b"focus": 5, b"meta": 6}
+
+
+def layout_table(order) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(text, ends, slots) of a layout for `decode_controls_row`: the literal `(tag ` texts
+    concatenated, their end offsets, and per group its output slot (+10 for an int group)."""
+    texts = [b"(" + tag + b" " for tag in order]
+    ends = np.cumsum([len(t) for t in texts]).astype(np.int64)
+    slots = np.array([OUT_SLOT[tag] + (10 if tag in INT_TAGS else 0) for tag in order], dtype=np.int64)
+    return np.frombuffer(b"".join(texts), dtype=np.uint8), ends, slots
+
+
+@numba.njit(cache=True, inline="always")
+def _is_digit(c):
+    return 48 <= c <= 57
+
+
+@numba.njit(cache=True)
+def _number(buf, pos, n, out, slot, is_int):
+    """Read `[+-]?(d+.?d*|.d+)([eE][+-]?d+)?` at buf[pos:n] (an int group: `[+-]?d+(.d*)?`)
+    into out[slot] (a float as the C++ server stores it: double, then float32; an int as is);
+    returns the end, or -1 if the token is not of that form or not exactly convertible here
+    (over 15 significant digits, a large exponent, over 9 int digits, float32 overflow)."""
+    neg = False
+    if pos < n and (buf[pos] == 43 or buf[pos] == 45):
+        neg = buf[pos] == 45
+        pos += 1
+    mant = 0
+    digits = 0
+    int_digits = 0
+    scale = 0               # value = mant * 10^scale
+    seen = 0
+    while pos < n and _is_digit(buf[pos]):
+        d = buf[pos] - 48
+        if digits < 15:
+            digits += 1 if mant > 0 or d > 0 else 0
+            mant = mant * 10 + d
+        elif d == 0:
+            scale += 1          # a 16th+ digit: exact only as a trailing zero
+        else:
+            return -1
+        int_digits += 1
+        seen += 1
+        pos += 1
+    if pos < n and buf[pos] == 46:   # '.'
+        pos += 1
+        while pos < n and _is_digit(buf[pos]):
+            d = buf[pos] - 48
+            if digits < 15:
+                digits += 1 if mant > 0 or d > 0 else 0
+                mant = mant * 10 + d
+                scale -= 1
+            elif d != 0:
+                return -1
+            seen += 1
+            pos += 1
+    if seen == 0:
+        return -1
+    if is_int:
+        if int_digits == 0 or int_digits > 9:
+            return -1
+        q = mant
+        for _ in range(-scale):       # the fraction digits of "1.000" drop out
+            q //= 10
+        for _ in range(scale):
+            q *= 10
+        out[slot] = -q if neg else q
+        return pos
+    if pos < n and (buf[pos] == 101 or buf[pos] == 69):   # 'e' / 'E'
+        pos += 1
+        eneg = False
+        if pos < n and (buf[pos] == 43 or buf[pos] == 45):
+            eneg = buf[pos] == 45
+            pos += 1
+        e = 0
+        ed = 0
+        while pos < n and _is_digit(buf[pos]):
+            e = min(e * 10 + (buf[pos] - 48), 1000)
+            ed += 1
+            pos += 1
+        if ed == 0:
+            return -1
+        scale += -e if eneg else e
+    if mant == 0:
+        value = 0.0
+    elif -22 <= scale <= 22:      # one correctly rounded operation (Clinger's fast path)
+        value = mant * _POW10[scale] if scale >= 0 else mant / _POW10[-scale]
+    else:
+        return -1
+    v32 = np.float64(np.float32(value))
+    if not math.isfinite(v32):
+        return -1
+    out[slot] = -v32 if neg else v32
+    return pos
+
+
+@numba.njit(cache=True)
+def decode_controls_row(buf, n, text, ends, slots, out):
+    """A control datagram buf[:n] (uint8) in one stock layout (`layout_table`), into out (7,):
+    steer, accel, brake, gear, clutch, focus, meta (floats float32-rounded). Returns True when
+    the datagram is exactly that layout (one number per group, extra focus numbers allowed,
+    an optional final NUL); False: out is unspecified and the exact Python parser decides."""
+    if n > 0 and buf[n - 1] == 0:
+        n -= 1
+    pos = 0
+    start = 0
+    for g in range(ends.shape[0]):
+        for j in range(start, ends[g]):
+            if pos >= n or buf[pos] != text[j]:
+                return False
+            pos += 1
+        start = ends[g]
+        slot = slots[g]
+        pos = _number(buf, pos, n, out, slot % 10, slot >= 10)
+        if pos < 0:
+            return False
+        if slot == 15:     # focus: snakeoil may send more directions; the first one counts
+            while pos < n and buf[pos] == 32:
+                pos = _number(buf, pos + 1, n, out, 7, False)
+                if pos < 0:
+                    return False
+        if pos >= n or buf[pos] != 41:   # ')'
+            return False
+        pos += 1
+    return pos == n

@@ -59,6 +59,7 @@ __all__ = [
     "decode_sensors",
     "encode_controls",
     "decode_controls",
+    "decode_controls_into",
     "encode_init",
     "parse_init",
     "identified_reply",
@@ -594,6 +595,23 @@ def decode_controls(data: bytes) -> Controls:
                 return Controls(values[0], values[1], int(g), values[2], values[3],
                                 focus if -90 <= focus <= 90 else None, int(meta), True)
     return _decode_controls_general(data)
+
+
+_LAYOUTS = (K.layout_table(K.CPP_ORDER), K.layout_table(K.SNAKEOIL_ORDER))
+
+
+def decode_controls_into(data: bytes, out: np.ndarray) -> bool:
+    """The compiled fast path of decode_controls for the two stock layouts: fills out (8,)
+    float64 with steer, accel, brake, gear, clutch, focus (any value), meta and returns True
+    (the datagram is well formed), or returns False (out unspecified): use decode_controls."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n = min(buf.shape[0], MAX_DATAGRAM_BYTES)
+    if n != buf.shape[0] or n == MAX_DATAGRAM_BYTES and buf[-1] != 0:
+        return False
+    for text, ends, slots in _LAYOUTS:
+        if K.decode_controls_row(buf, n, text, ends, slots, out):
+            return True
+    return False
 
 
 def _decode_controls_general(data: bytes) -> Controls:

@@ -124,6 +124,7 @@ class ScrServer:
         self.world = None
         self._race_ticks = 0          # world ticks of the current race
         self._warm = False            # kernels loaded (warm_up ran) in this process
+        self._decoded = np.zeros(8)   # decode_controls_into's output
 
     # --- sockets ----------------------------------------------------------------------------
 
@@ -451,12 +452,18 @@ class ScrServer:
             if not c.sync:   # it answered (late or fresh): wait for it again
                 c.sync = True
                 self.log(f"client of car {c.index} answers again: waiting for it every tick")
-            ctl = P.decode_controls(data)
-            if not ctl.well_formed:
-                self.stats.bad_datagrams += 1
-            c.controls[:] = (ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch)
-            c.focus = ctl.focus
-            if ctl.meta == 1 and restart_by is None:
+            decoded = self._decoded
+            if P.decode_controls_into(data, decoded):   # a stock client's message, compiled
+                c.controls[:] = decoded[:5]
+                focus, meta = int(decoded[5]), int(decoded[6])
+                c.focus = focus if -90 <= focus <= 90 else None
+            else:
+                ctl = P.decode_controls(data)
+                if not ctl.well_formed:
+                    self.stats.bad_datagrams += 1
+                c.controls[:] = (ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch)
+                c.focus, meta = ctl.focus, ctl.meta
+            if meta == 1 and restart_by is None:
                 restart_by = c.index
         return restart_by
 
@@ -549,7 +556,8 @@ def warm_up(world, noisy: bool = False) -> None:
     world.reset(placements)
     for _ in range(2):
         world.step(controls)
-    P.decode_controls(b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0")
+    for style in ("cpp", "snakeoil"):
+        P.decode_controls_into(P.encode_controls(1.0, 0.0, 1, 0.0, style=style), np.zeros(8))
 
 
 def _port_list(ports: list[int]) -> str:

@@ -648,6 +648,53 @@ def test_snakeoil_style_round_trip(accel, brake, gear, steer, clutch, focus, met
     assert got == P._decode_controls_general(data)
 
 
+def _same_as_decode_controls(data: bytes) -> bool:
+    """decode_controls_into agrees with decode_controls wherever it answers; returns whether
+    it answered."""
+    out = np.full(8, np.nan)
+    if not P.decode_controls_into(data, out):
+        return False
+    ctl = decode_controls(data)
+    assert ctl.well_formed
+    assert out[:5].tolist() == [ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch]
+    focus = int(out[5])
+    assert (focus if -90 <= focus <= 90 else None) == ctl.focus and int(out[6]) == ctl.meta
+    return True
+
+
+_PLAIN = st.floats(-1e6, 1e6).filter(lambda x: x == 0 or abs(x) > 1e-15)   # <= 15 digits, |exp| <= 22
+
+
+@SETTINGS
+@given(_PLAIN, _PLAIN, st.integers(-1, 7), _PLAIN, _PLAIN, st.integers(-400, 400),
+       st.integers(0, 1), st.sampled_from(["cpp", "snakeoil"]))
+def test_compiled_control_decoder_reads_stock_messages_like_the_reference(accel, brake, gear, steer,
+                                                                          clutch, focus, meta, style):
+    data = encode_controls(accel, brake, gear, steer, clutch, focus, meta, style=style)
+    assert _same_as_decode_controls(data)
+
+
+@SETTINGS
+@given(st.binary(max_size=120) | st.builds(
+    lambda a, b, c: a + b + c, st.sampled_from([b"(accel 1)(brake ", b"(accel -.5)(brake 0)(gear 2."]),
+    st.text("0123456789.eE+- ()", max_size=20).map(str.encode),
+    st.sampled_from([b")(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)", b")(steer 1)(clutch 0)(focus 0 1)(meta 1)\0",
+                     b")(clutch 0)(gear 1)(steer 0)(focus 5 6 7)(meta 0)", b""])))
+def test_compiled_control_decoder_answers_only_where_it_agrees(data):
+    _same_as_decode_controls(data)
+
+
+@pytest.mark.parametrize("data", [
+    b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0\0",    # two NULs
+    b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0) ",      # trailing space
+    b"(accel 1e400)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)",    # overflow
+    b"(accel 1.2345678901234567)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)",  # 17 digits
+    b"(accel 1)(brake 0)(gear 1e1)(steer 0)(clutch 0)(focus 0)(meta 0)",      # int with exponent
+    b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)" + b" " * 940])
+def test_compiled_control_decoder_leaves_the_unusual_to_the_reference(data):
+    assert not _same_as_decode_controls(data)
+
+
 def test_encode_controls_formats_like_the_stock_clients():
     assert encode_controls(1, 0, 2, -0.0123457, 0, 0, 0) == EXAMPLE_CONTROLS_CPP
     assert encode_controls(0, 1, 1, 0, 0, [-90, -45, 0, 45, 90], 1,
