@@ -45,10 +45,10 @@ def _scale(a, p):
 
 
 @numba.njit(cache=True)
-def _put_int(out, pos, q):
-    """Decimal digits of q >= 0 at out[pos:]; returns the new end."""
+def _put_int(out, i, pos, q):
+    """Decimal digits of q >= 0 at out[i, pos:]; returns the new end."""
     if q == 0:
-        out[pos] = 48
+        out[i, pos] = 48
         return pos + 1
     n = 0
     t = q
@@ -56,22 +56,22 @@ def _put_int(out, pos, q):
         n += 1
         t //= 10
     for k in range(n - 1, -1, -1):
-        out[pos + k] = 48 + q % 10
+        out[i, pos + k] = 48 + q % 10
         q //= 10
     return pos + n
 
 
 @numba.njit(cache=True)
-def _put_g(out, pos, f):
-    """C `printf("%g", f)` of a finite double `f` at out[pos:]; returns the new end, or -1 when
+def _put_g(out, i, pos, f):
+    """C `printf("%g", f)` of a finite double `f` at out[i, pos:]; returns the new end, or -1 when
     the 6-digit rounding is too close to a tie to decide in double arithmetic. The last 6
-    bytes of `out` are scratch space."""
+    bytes of row i of `out` are scratch space."""
     if f < 0.0 or (f == 0.0 and math.copysign(1.0, f) < 0.0):
-        out[pos] = 45   # '-'
+        out[i, pos] = 45   # '-'
         pos += 1
     a = abs(f)
     if a == 0.0:
-        out[pos] = 48
+        out[i, pos] = 48
         return pos + 1
     e = int(math.floor(math.log10(a)))
     q = 0
@@ -93,51 +93,51 @@ def _put_g(out, pos, f):
         else:
             break
     # the 6 digits go to the scratch bytes at the end of `out` (constant divisions only)
-    scratch = out.shape[0] - 6
+    scratch = out.shape[1] - 6
     for k in range(5, -1, -1):
-        out[scratch + k] = 48 + q % 10
+        out[i, scratch + k] = 48 + q % 10
         q //= 10
     last = 5                  # %g drops trailing zeros of the fraction
-    while last > 0 and out[scratch + last] == 48:
+    while last > 0 and out[i, scratch + last] == 48:
         last -= 1
     if -4 <= e < 6:
         if e >= 0:
             for k in range(e + 1):
-                out[pos] = out[scratch + k]
+                out[i, pos] = out[i, scratch + k]
                 pos += 1
             if last > e:
-                out[pos] = 46   # '.'
+                out[i, pos] = 46   # '.'
                 pos += 1
                 for k in range(e + 1, last + 1):
-                    out[pos] = out[scratch + k]
+                    out[i, pos] = out[i, scratch + k]
                     pos += 1
         else:
-            out[pos] = 48
-            out[pos + 1] = 46
+            out[i, pos] = 48
+            out[i, pos + 1] = 46
             pos += 2
             for _ in range(-e - 1):
-                out[pos] = 48
+                out[i, pos] = 48
                 pos += 1
             for k in range(last + 1):
-                out[pos] = out[scratch + k]
+                out[i, pos] = out[i, scratch + k]
                 pos += 1
         return pos
-    out[pos] = out[scratch]
+    out[i, pos] = out[i, scratch]
     pos += 1
     if last > 0:
-        out[pos] = 46
+        out[i, pos] = 46
         pos += 1
         for k in range(1, last + 1):
-            out[pos] = out[scratch + k]
+            out[i, pos] = out[i, scratch + k]
             pos += 1
-    out[pos] = 101   # 'e'
-    out[pos + 1] = 45 if e < 0 else 43
+    out[i, pos] = 101   # 'e'
+    out[i, pos + 1] = 45 if e < 0 else 43
     pos += 2
     ae = abs(e)
     if ae < 10:
-        out[pos] = 48
+        out[i, pos] = 48
         pos += 1
-    return _put_int(out, pos, ae)
+    return _put_int(out, i, pos, ae)
 
 
 @numba.njit(cache=True)
@@ -171,13 +171,13 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
                     out[i, pos] = 45
                     pos += 1
                     t = -t
-                pos = _put_int(out[i], pos, t)
+                pos = _put_int(out, i, pos, t)
             else:
                 f = np.float64(np.float32(v))
                 if not math.isfinite(f):
                     ok = False
                     break
-                pos = _put_g(out[i], pos, f)
+                pos = _put_g(out, i, pos, f)
                 if pos < 0:
                     ok = False
                     break
