@@ -214,16 +214,21 @@ def _is_digit(c):
     return 48 <= c <= 57
 
 
+@numba.njit(cache=True, inline="always")
+def _sign(buf, pos, n):
+    """An optional '+' or '-' at buf[pos]: (negative, position after it)."""
+    if pos < n and (buf[pos] == 43 or buf[pos] == 45):
+        return buf[pos] == 45, pos + 1
+    return False, pos
+
+
 @numba.njit(cache=True)
 def _number(buf, pos, n, out, slot, is_int):
     """Read `[+-]?(d+.?d*|.d+)([eE][+-]?d+)?` at buf[pos:n] (an int group: `[+-]?d+(.d*)?`)
     into out[slot] (a float as the C++ server stores it: double, then float32; an int as is);
     returns the end, or -1 if the token is not of that form or not exactly convertible here
     (over 15 significant digits, a large exponent, over 9 int digits, float32 overflow)."""
-    neg = False
-    if pos < n and (buf[pos] == 43 or buf[pos] == 45):
-        neg = buf[pos] == 45
-        pos += 1
+    neg, pos = _sign(buf, pos, n)
     mant = 0
     digits = 0
     int_digits = 0
@@ -266,11 +271,7 @@ def _number(buf, pos, n, out, slot, is_int):
         out[slot] = -q if neg else q
         return pos
     if pos < n and (buf[pos] == 101 or buf[pos] == 69):   # 'e' / 'E'
-        pos += 1
-        eneg = False
-        if pos < n and (buf[pos] == 43 or buf[pos] == 45):
-            eneg = buf[pos] == 45
-            pos += 1
+        eneg, pos = _sign(buf, pos + 1, n)
         e = 0
         ed = 0
         while pos < n and _is_digit(buf[pos]):
