@@ -285,7 +285,7 @@ class ScrServer:
                 flat[:, _FOCUS:_FOCUS + 5] = -1.0
             finished = self._race_over(tick, laps, cars)
             late = {} if finished or self.mode == "timeout" else self._take_late(cars)
-            messages = self._encode(flat.astype(np.float32))   # SCR sends C floats anyway
+            messages = self._encode(flat)   # floats go out float32-rounded, as SCR sends them
             for c in cars:
                 self._send(c, messages[c.index])
             if finished:
@@ -322,7 +322,7 @@ class ScrServer:
                 return "restart"
 
     def _encode(self, rows: np.ndarray) -> list[bytes]:
-        """Every car's state message from its (79,) wire-order sensor row (float32)."""
+        """Every car's state message from its (79,) wire-order sensor row."""
         try:
             return P.encode_sensor_rows(rows)
         except P.ProtocolError:
@@ -548,7 +548,7 @@ def warm_up(world, noisy: bool = False) -> None:
     suite.request_focus(cars, np.zeros(world.n_cars))
     controls = np.zeros((world.n_cars, 5))
     controls[:, 1] = 1.0
-    P.encode_sensor_rows(suite.frame().flat.astype(np.float32))   # on the grid: focus read
+    P.encode_sensor_rows(suite.frame().flat)   # on the grid: focus read
     world.step(controls)
     placements = np.zeros((world.n_cars, 3))
     placements[:, 0] = 10.0 * cars          # the other cars in line behind, clear of car 0

@@ -44,7 +44,7 @@ suite.set_angles(0, P.CPP_CLIENT_ANGLES_DEG)
 controls = np.array([[1.0, 1.0, 0.0, 1.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0]])
 for tick in range(200):
     suite.request_focus(np.arange(2), np.zeros(2))
-    P.encode_sensor_rows(suite.frame().flat.astype(np.float32))
+    P.encode_sensor_rows(suite.frame().flat)
     P.decode_controls(b"(accel 1)(brake 0)(gear 1)(steer 1)(clutch 0)(focus 0)(meta 0)")
     world.step(controls)
 after_warm_up = [name for name, d in dispatchers() if len(d.overloads) > loaded.get(name, 0)]
