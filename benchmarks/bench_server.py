@@ -2,12 +2,21 @@
 
 Run: python benchmarks/bench_server.py [--ticks 20000] [--track madsim-oval] [--case rest]
                                        [--profile FILE]
+     python benchmarks/bench_server.py --tools ../shared/tools [--reps 3] [--ticks 20000]
+
+With --tools DIR: the issue-13 acceptance procedure instead. DIR holds `scr_speed_probe.py`
+(the minimal client; `--full` parses every sensor first) and `scr_echo_server.py` (a
+do-nothing Python server). Each repetition runs, back to back on one port, echo then `madsim
+serve` (sync, g-track-1, car1-trb1, `--countdown 0`), with the minimal client then the full
+one; every figure is over the whole run from the first tick after identification (start-up
+stalls included). Prints each run, then per server and client the median ticks/s, the
+worst longest wait, and madsim's median as a share of echo's.
 
 The server runs as a subprocess (`python -m madsim.cli serve --countdown 0 --max-ticks N`); the
 client is a plain socket in this process that sends the init once, then answers every state
 message at once with one fixed C++-style control string, without parsing anything. The clock
 runs over the last `--ticks` ticks, after WARMUP ticks (1,000) that absorb start-up costs (the
-first World.step compiles the contact stepper, ~1 s), up to `***shutdown***`. Real TORCS
+first ticks used to wait for numba; they are component figures), up to `***shutdown***`. Real TORCS
 reaches about 10,400 ticks/s here with a minimal client (issue 4). With --profile FILE the
 server runs under cProfile and its 25 most expensive functions (own time) are printed.
 
@@ -119,8 +128,48 @@ def run(ticks: int, track: str, control: bytes, profile: str | None) -> float:
             server.wait()
 
 
+def probe_runs(tools: str, reps: int, ticks: int) -> None:
+    """The acceptance procedure of issue 13 (see the module docstring): prints one line per run
+    and a summary."""
+    probe, echo = os.path.join(tools, "scr_speed_probe.py"), os.path.join(tools, "scr_echo_server.py")
+    results: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for _ in range(reps):
+        for client in ("minimal", "full"):
+            for server_name in ("echo", "madsim"):
+                port = free_udp_port()
+                if server_name == "echo":
+                    cmd = [sys.executable, echo, str(port)]
+                else:
+                    cmd = [sys.executable, "-m", "madsim.cli", "serve", "--track", "g-track-1",
+                           "--cars", "car1-trb1", "--port", str(port), "--countdown", "0",
+                           "--max-ticks", str(ticks + 10)]
+                server = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                try:
+                    out = subprocess.run([sys.executable, probe, str(ticks), str(port)]
+                                         + (["--full"] if client == "full" else []),
+                                         capture_output=True, text=True, timeout=600).stdout
+                finally:
+                    server.kill()
+                    server.wait()
+                rate = float(out.split("ticks/s=")[1].split()[0])
+                wait = float(out.split("longest_wait=")[1].split()[0])
+                results.setdefault((server_name, client), []).append((rate, wait))
+                print(f"{server_name:6} {client:7} {out.strip()}", flush=True)
+    for client in ("minimal", "full"):
+        med = {}
+        for server_name in ("echo", "madsim"):
+            runs = results[(server_name, client)]
+            med[server_name] = sorted(r for r, _ in runs)[len(runs) // 2]
+            print(f"{server_name:6} {client:7} median {med[server_name]:,.0f} ticks/s, "
+                  f"longest wait {max(w for _, w in runs) * 1000:.0f} ms over {len(runs)} runs")
+        print(f"madsim / echo, {client} client: {med['madsim'] / med['echo']:.0%}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tools", default=None, help="folder of scr_speed_probe.py and "
+                    "scr_echo_server.py: run the acceptance procedure (see the docstring)")
+    ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--ticks", type=int, default=20_000)
     ap.add_argument("--track", default="madsim-oval")
     ap.add_argument("--case", choices=sorted(CONTROLS), action="append",
@@ -128,6 +177,9 @@ def main() -> None:
     ap.add_argument("--profile", default=None, help="write the server's cProfile output here "
                     "(one case only)")
     args = ap.parse_args()
+    if args.tools:
+        probe_runs(args.tools, args.reps, args.ticks)
+        return
     cases = args.case or ["echo", "rest", "wall"]
     if args.profile and len(cases) != 1:
         ap.error("--profile needs exactly one --case")

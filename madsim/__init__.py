@@ -2,6 +2,10 @@
 
 __version__ = "0.1.0"
 
+from madsim.kernel_cache import install as _install_kernel_cache
+
+_install_kernel_cache()   # before any kernel module: numba picks cache locators at decoration
+
 from madsim.envs.registration import register_envs as _register_envs
 
 _register_envs()

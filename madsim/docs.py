@@ -101,43 +101,20 @@ def config_reference() -> str:
     return "\n".join(out)
 
 
-SENSOR_MEANING = {
-    "angle": ("rad", "track tangent minus car yaw, in (-pi, pi]; positive when the car points right of the track"),
-    "curLapTime": ("s", "time since the current lap started (the first lap's timer runs from the race start)"),
-    "damage": ("points (int)", "accumulated collision damage"),
-    "distFromStart": ("m", "distance along the centre line from the start line, [0, L)"),
-    "distRaced": ("m", "distance driven since the race start (grows backwards when reversing)"),
-    "fuel": ("l (kg)", "fuel in the tank"),
-    "gear": ("int", "engaged gear: -1 reverse, 0 neutral, 1..6"),
-    "lastLapTime": ("s", "time of the last completed lap; 0 before the first"),
-    "opponents": ("m", "nearest other car in each 10-degree sector clockwise from dead astern, 200 if none"),
-    "racePos": ("int", "race position, 1 = leading (laps, then distance)"),
-    "rpm": ("rad/s x 10", "engine speed as SCR reports it (about 1.047 x true rpm)"),
-    "speedX": ("km/h", "longitudinal speed in the car frame, forward positive"),
-    "speedY": ("km/h", "lateral speed in the car frame, left positive"),
-    "speedZ": ("km/h", "vertical speed, up positive"),
-    "track": ("m", "19 rangefinders to the road edges at the client's angles (positive = clockwise), "
-                   "200 m range; all -1 when off the road"),
-    "trackPos": ("-", "lateral position: 0 on the centre line, +1 left edge, -1 right edge"),
-    "wheelSpinVel": ("rad/s", "wheel spin, TORCS order front-right, front-left, rear-right, rear-left"),
-    "z": ("m", "height of the car's centre of gravity above the road"),
-    "focus": ("m", "5 rays at focus-2..focus+2 degrees; one valid reading per simulated second, else -1"),
-}
-
 
 def sensor_reference() -> str:
     """docs/sensors.md: the SCR sensor set and the observation modes built from it."""
     from madsim.agents.observations import _MODES, FIELD_SCALE, ObservationBuilder
-    from madsim.physics.sensors import NOISE_STD, SENSOR_WIDTHS
+    from madsim.facts import SCR_FIELDS
+    from madsim.physics.sensors import NOISE_STD
 
     out = [GENERATED, "", "# Sensors and observations", "",
            "Every car's sensors are the SCR set (`madsim.physics.sensors.SensorFrame`), in wire order "
            "and SCR units, identical in process and over UDP.", "",
            "| field | values | unit | meaning | noise (`noisy`) |", "|---|---|---|---|---|"]
-    for name, width in SENSOR_WIDTHS:
-        unit, meaning = SENSOR_MEANING[name]
-        noise = f"x N(1, {NOISE_STD[name]})" if name in NOISE_STD else "none"
-        out.append(f"| `{name}` | {width} | {unit} | {meaning} | {noise} |")
+    for f in SCR_FIELDS:
+        noise = f"x N(1, {NOISE_STD[f.name]})" if f.name in NOISE_STD else "none"
+        out.append(f"| `{f.name}` | {f.width} | {f.unit} | {f.meaning} | {noise} |")
     out += ["", "## Observation modes", "",
             "A mode picks fields and scales them as gym_torcs/MADRaS did "
             + ", ".join(f"`{k}` x {v:g}" for k, v in FIELD_SCALE.items()) + ".", "",

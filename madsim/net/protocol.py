@@ -28,6 +28,11 @@ import re
 import struct
 from typing import Any, Mapping, NamedTuple, Sequence
 
+import numpy as np
+
+from madsim import facts as F
+from madsim.net import codec_kernels as K
+
 __all__ = [
     "ProtocolError",
     "SensorField",
@@ -50,9 +55,11 @@ __all__ = [
     "SensorEncoder",
     "encode_sensors",
     "encode_sensors_flat",
+    "encode_sensor_rows",
     "decode_sensors",
     "encode_controls",
     "decode_controls",
+    "decode_controls_into",
     "encode_init",
     "parse_init",
     "identified_reply",
@@ -87,35 +94,21 @@ class SensorField(NamedTuple):
     kind: str
 
 
-def _fields(spec: str) -> tuple[SensorField, ...]:
-    out = []
-    for item in spec.split():
-        name, width, kind = item.split(":")
-        out.append(SensorField(name, int(width), kind))
-    return tuple(out)
-
-
-SENSOR_FIELDS = _fields(
-    "angle:1:float curLapTime:1:float damage:1:int distFromStart:1:float distRaced:1:float "
-    "fuel:1:float gear:1:int lastLapTime:1:float opponents:36:float racePos:1:int rpm:1:float "
-    "speedX:1:float speedY:1:float speedZ:1:float track:19:float trackPos:1:float "
-    "wheelSpinVel:4:float z:1:float focus:5:float"
-)
-"""Fields of the SRV13 state message in wire order (§5); gear, racePos, damage are C ints."""
+SENSOR_FIELDS = tuple(SensorField(f.name, f.width, f.kind) for f in F.SCR_FIELDS)
+"""Fields of the SRV13 state message in wire order (§5, `madsim.facts.SCR_FIELDS`); gear,
+racePos, damage are C ints."""
 
 VISION_SENSOR_FIELDS = (
     SENSOR_FIELDS[:4] + (SensorField("totalDistFromStart", 1, "float"),) + SENSOR_FIELDS[4:]
 )
 """gym_torcs' vtorcs variant (SRVVIS): `totalDistFromStart` after `distFromStart` (§5)."""
 
-SENSOR_VALUE_COUNT = sum(f.width for f in SENSOR_FIELDS)  # 79 numbers per state message
+SENSOR_VALUE_COUNT = F.SCR_VALUE_COUNT  # 79 numbers per state message
 
-DEFAULT_ANGLES_DEG = tuple(-90.0 + 10.0 * i for i in range(19))
+DEFAULT_ANGLES_DEG = F.SCR_SERVER_DEFAULT_ANGLES_DEG
 """Rangefinder angles the server uses when `(init ...)` is missing or short (§3.3)."""
-CPP_CLIENT_ANGLES_DEG = (-90.0, -75.0, -60.0, -45.0, -30.0, -20.0, -15.0, -10.0, -5.0, 0.0,
-                         5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0)
-SNAKEOIL_ANGLES_DEG = (-45.0, -19.0, -12.0, -7.0, -4.0, -2.5, -1.7, -1.0, -0.5, 0.0,
-                       0.5, 1.0, 1.7, 2.5, 4.0, 7.0, 12.0, 19.0, 45.0)
+CPP_CLIENT_ANGLES_DEG = F.SCR_CPP_CLIENT_ANGLES_DEG
+SNAKEOIL_ANGLES_DEG = F.SNAKEOIL_ANGLES_DEG
 
 IDENTIFIED = b"***identified***"
 RESTART = b"***restart***"
@@ -278,6 +271,15 @@ class SensorEncoder:
         self._template = "".join(
             "(" + f.name + (" %g" if f.kind == "float" else " %d") * f.width + ")"
             for f in self.fields).encode("ascii") + b"\0"
+        # the compiled path: literal text around each value, int flags, an output buffer
+        pieces = self._template[:-1].split(b"%")
+        literals = [pieces[0]] + [p[1:] for p in pieces[1:]]
+        self._lit = np.frombuffer(b"".join(literals), dtype=np.uint8)
+        self._lit_end = np.cumsum([len(x) for x in literals]).astype(np.int64)
+        self._is_int = np.array([f.kind == "int" for f in self.fields for _ in range(f.width)])
+        self._width = len(self._lit) + self.value_count * K.MAX_VALUE_CHARS + 7
+        self._out = np.zeros((1, self._width), dtype=np.uint8)
+        self._length = np.zeros(1, dtype=np.int64)
 
     def encode(self, values: Mapping[str, Any], img: Any = None) -> bytes:
         """One car's state message from a mapping of SCR name -> value(s); ends with NUL."""
@@ -297,8 +299,29 @@ class SensorEncoder:
             return self._encode_checked(values, img)  # C spelling of nan sign
         return self._finish(self._template % rounded, img)
 
+    def encode_rows(self, rows: np.ndarray) -> list[bytes]:
+        """State messages (each ending with NUL) of every row of `rows` (N, value_count), float32
+        or float64, values in wire order: one compiled call; a row it cannot do exactly (see
+        `madsim.net.codec_kernels`) goes through `encode_flat`'s exact path."""
+        n = rows.shape[0]
+        if self._out.shape[0] < n:
+            self._out = np.zeros((n, self._width), dtype=np.uint8)
+            self._length = np.zeros(n, dtype=np.int64)
+        out, length = self._out, self._length
+        K.encode_rows(rows, self._is_int, self._lit, self._lit_end, self.max_bytes, out, length)
+        return [out[i, :length[i]].tobytes() if length[i] > 0 else self._encode_flat_exact(rows[i], None)
+                for i in range(n)]
+
     def encode_flat(self, row: Any, img: Any = None) -> bytes:
         """One car's state message from all values flattened in wire order; ends with NUL."""
+        if isinstance(row, np.ndarray) and row.shape == (self.value_count,) \
+                and row.dtype in (np.float32, np.float64):
+            msg = self.encode_rows(row[None, :])[0]
+            return msg if img is None else self._finish(msg, img)
+        return self._encode_flat_exact(row, img)
+
+    def _encode_flat_exact(self, row: Any, img: Any) -> bytes:
+        """encode_flat value by value in Python (any sequence; exact C spelling always)."""
         dtype = getattr(row, "dtype", None)
         try:
             flat = row.tolist() if hasattr(row, "tolist") else list(row)
@@ -370,6 +393,12 @@ def encode_sensors(values: Mapping[str, Any], img: Any = None) -> bytes:
 def encode_sensors_flat(row: Any, img: Any = None) -> bytes:
     """SRV13 state message from 79 values in wire order; see SensorEncoder.encode_flat."""
     return _DEFAULT_ENCODER.encode_flat(row, img)
+
+
+def encode_sensor_rows(rows: np.ndarray) -> list[bytes]:
+    """SRV13 state messages of N cars from an (N, 79) array in wire order (one compiled call);
+    see SensorEncoder.encode_rows."""
+    return _DEFAULT_ENCODER.encode_rows(rows)
 
 
 # --- state message, client side -------------------------------------------------------------
@@ -566,6 +595,23 @@ def decode_controls(data: bytes) -> Controls:
                 return Controls(values[0], values[1], int(g), values[2], values[3],
                                 focus if -90 <= focus <= 90 else None, int(meta), True)
     return _decode_controls_general(data)
+
+
+_LAYOUTS = (K.layout_table(K.CPP_ORDER), K.layout_table(K.SNAKEOIL_ORDER))
+
+
+def decode_controls_into(data: bytes, out: np.ndarray) -> bool:
+    """The compiled fast path of decode_controls for the two stock layouts: fills out (8,)
+    float64 with steer, accel, brake, gear, clutch, focus (any value), meta and returns True
+    (the datagram is well formed), or returns False (out unspecified): use decode_controls."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n = min(buf.shape[0], MAX_DATAGRAM_BYTES)
+    if n != buf.shape[0] or n == MAX_DATAGRAM_BYTES and buf[-1] != 0:
+        return False
+    for text, ends, slots in _LAYOUTS:
+        if K.decode_controls_row(buf, n, text, ends, slots, out):
+            return True
+    return False
 
 
 def _decode_controls_general(data: bytes) -> Controls:

@@ -22,20 +22,22 @@ difference.
 from __future__ import annotations
 
 import csv
+import gc
 import os
 import select
 import socket
+import struct
 import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
+from madsim.facts import TICK_S
 from madsim.net import protocol as P
 from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import FOCUS_NONE, SENSOR_OFFSETS, SensorSuite
 
-TICK_S = 0.02
 MODES = ("sync", "timeout", "realtime")
 COUNTDOWN_TICKS = 49          # TORCS polls robots ~49 times during the start countdown (§4.3)
 MAX_DAMAGE = 10000.0          # a car above this is out of the race (TORCS default)
@@ -125,6 +127,8 @@ class ScrServer:
         self.cars: list[_Car] = []
         self.world = None
         self._race_ticks = 0          # world ticks of the current race
+        self._warm = False            # kernels loaded (warm_up ran) in this process
+        self._decoded = np.zeros(8)   # decode_controls_into's output
 
     # --- sockets ----------------------------------------------------------------------------
 
@@ -140,7 +144,9 @@ class ScrServer:
                 self.close()
                 raise ServerError(f"cannot bind UDP {self.host}:{port}: "
                                   f"{getattr(exc, 'strerror', None) or exc}") from None
-            s.setblocking(False)
+            # blocking reads wait at most client_deadline_s, enforced by the kernel (one
+            # recvfrom per answer, no select); every other read passes MSG_DONTWAIT
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(self.client_deadline_s))
             self.cars.append(_Car(i, s, port, self._controls[i]))
 
     def close(self) -> None:
@@ -162,7 +168,7 @@ class ScrServer:
     def _recv(self, car: _Car):
         """One datagram from the car's socket: (data, addr) or None when nothing is queued."""
         try:
-            return car.sock.recvfrom(65536)
+            return car.sock.recvfrom(65536, socket.MSG_DONTWAIT)
         except (BlockingIOError, InterruptedError):
             return None
         except OSError:
@@ -214,7 +220,9 @@ class ScrServer:
         """Run races until the end of a race, a stop request or Ctrl-C; returns the counters.
 
         On a stop request or Ctrl-C every identified client gets `***shutdown***` and the
-        summary of the race so far is logged; Ctrl-C does not propagate."""
+        summary of the race so far is logged; Ctrl-C does not propagate. Before the clients
+        identify, the compiled kernels are loaded (`warm_up`) and the objects alive in this
+        process are moved out of the garbage collector's reach (`gc.freeze`)."""
         if not self.cars:
             self.open()
         writer = None
@@ -226,7 +234,15 @@ class ScrServer:
                 writer = csv.writer(csv_file)
                 writer.writerow(CSV_FIELDS)
             while not self._stop:
+                if not self._warm:
+                    warm_up(self.make_world(self.seed), self.noisy)
+                    self._warm = True
                 world = self.make_world(self.seed)   # before the clients, as TORCS loads first
+                # a full collection of the ~150k objects of numba, pymunk and the World takes
+                # 0.1-0.15 s: do it now and exempt them from later ones (a race allocates only
+                # short-lived objects), so no tick waits for the collector
+                gc.collect()
+                gc.freeze()
                 if not self.identify_all():
                     break
                 outcome = self._race(writer, world)
@@ -274,9 +290,9 @@ class ScrServer:
                 flat[:, _FOCUS:_FOCUS + 5] = -1.0
             finished = self._race_over(tick, laps, cars)
             late = {} if finished or self.mode == "timeout" else self._take_late(cars)
-            rows = flat.astype(np.float32)     # the codec's fast path; SCR sends C floats anyway
+            messages = self._encode(flat)   # floats go out float32-rounded, as SCR sends them
             for c in cars:
-                self._send(c, self._encode(rows[c.index]))
+                self._send(c, messages[c.index])
             if finished:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
@@ -310,17 +326,17 @@ class ScrServer:
                     self._send(c, P.RESTART_MESSAGE if c.index == restart_by else P.SHUTDOWN_MESSAGE)
                 return "restart"
 
-    def _encode(self, row: np.ndarray) -> bytes:
-        """One car's state message from its (79,) wire-order sensor row (float32)."""
+    def _encode(self, rows: np.ndarray) -> list[bytes]:
+        """Every car's state message from its (79,) wire-order sensor row."""
         try:
-            return P.encode_sensors_flat(row)
+            return P.encode_sensor_rows(rows)
         except P.ProtocolError:
             # only pathological values exceed 999 bytes; round the noisy arrays and retry
-            row = row.copy()
+            rows = rows.copy()
             for name in ("track", "opponents", "focus"):
                 o, w = SENSOR_OFFSETS[name]
-                row[o:o + w] = np.round(row[o:o + w], 2)
-            return P.encode_sensors_flat(row)
+                rows[:, o:o + w] = np.round(rows[:, o:o + w], 2)
+            return P.encode_sensor_rows(rows)
 
     def _race_over(self, tick: int, laps: list, cars: list[_Car]) -> bool:
         """Max ticks reached, every car out, or every car still in the race done its laps."""
@@ -386,33 +402,48 @@ class ScrServer:
                 for sock, c in list(pending.items()):
                     if now >= deadline[c.index]:
                         if c.sync and tick_end is None:
-                            c.sync = False
-                            self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
-                                     f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
-                                     f"per tick until it answers again")
+                            self._to_timeout_behaviour(c)
                         del pending[sock]
             if tick_end is not None and (rest := tick_end - time.monotonic()) > 0:
                 time.sleep(rest)
         return self._apply(cars, got)
 
     def _collect_sync(self, cars: list[_Car]) -> dict[int, bytes]:
-        """Sync mode, every client answering in time so far (the usual tick): wait for each car's
-        answer until one shared deadline; a car silent past it goes to timeout behaviour."""
+        """Sync mode, every client answering in time so far (the usual tick): one blocking
+        read per car, which the kernel ends after `client_deadline_s` (SO_RCVTIMEO); a car
+        silent that long goes to timeout behaviour."""
         got: dict[int, bytes] = {}
-        deadline = time.monotonic() + self.client_deadline_s
         for c in cars:
-            while (data := self._read_from_client(c)) is None:
-                wait = deadline - time.monotonic()
-                if wait <= 0:
-                    c.sync = False
-                    self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
-                             f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
-                             f"per tick until it answers again")
-                    break
-                select.select([c.sock], [], [], wait)
-            if data is not None:
+            data = self._wait_for_client(c)
+            if data is None:
+                self._to_timeout_behaviour(c)
+            else:
                 got[c.index] = data
         return got
+
+    def _to_timeout_behaviour(self, c: _Car) -> None:
+        c.sync = False
+        self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
+                 f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
+                 f"per tick until it answers again")
+
+    def _wait_for_client(self, c: _Car) -> bytes | None:
+        """c's client's next datagram, waiting up to `client_deadline_s` (None on silence);
+        foreign datagrams are counted and dropped without extending the wait."""
+        end = None
+        while True:
+            try:
+                data, addr = c.sock.recvfrom(65536)
+            except OSError:     # EAGAIN: the deadline passed (or the socket failed)
+                return None
+            if addr == c.addr:
+                return data
+            self.stats.foreign_datagrams += 1
+            now = time.monotonic()
+            if end is None:
+                end = now + self.client_deadline_s
+            elif now >= end:
+                return None
 
     def _apply(self, cars: list[_Car], got: dict[int, bytes]) -> int | None:
         """Decode this tick's answers into each car's controls (silent cars keep theirs);
@@ -426,12 +457,18 @@ class ScrServer:
             if not c.sync:   # it answered (late or fresh): wait for it again
                 c.sync = True
                 self.log(f"client of car {c.index} answers again: waiting for it every tick")
-            ctl = P.decode_controls(data)
-            if not ctl.well_formed:
-                self.stats.bad_datagrams += 1
-            c.controls[:] = (ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch)
-            c.focus = ctl.focus
-            if ctl.meta == 1 and restart_by is None:
+            decoded = self._decoded
+            if P.decode_controls_into(data, decoded):   # a stock client's message, compiled
+                c.controls[:] = decoded[:5]
+                focus, meta = int(decoded[5]), int(decoded[6])
+                c.focus = focus if -90 <= focus <= 90 else None
+            else:
+                ctl = P.decode_controls(data)
+                if not ctl.well_formed:
+                    self.stats.bad_datagrams += 1
+                c.controls[:] = (ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch)
+                c.focus, meta = ctl.focus, ctl.meta
+            if meta == 1 and restart_by is None:
                 restart_by = c.index
         return restart_by
 
@@ -495,6 +532,37 @@ class ScrServer:
                              int(col("laps")[i]), f"{frame.curLapTime[i]:.3f}", f"{frame.lastLapTime[i]:.3f}",
                              int(frame.damage[i]), f"{controls[i, 0]:.5f}", f"{controls[i, 1]:.5f}",
                              f"{controls[i, 2]:.5f}", int(controls[i, 3]), f"{controls[i, 4]:.5f}"])
+
+
+def _timeval(seconds: float) -> bytes:
+    """struct timeval for SO_RCVTIMEO (all zero, "wait forever", for an infinite deadline)."""
+    if not seconds < 1e7:
+        return struct.pack("ll", 0, 0)
+    usec = max(1, round(max(seconds, 0.0) * 1e6))
+    return struct.pack("ll", usec // 1_000_000, usec % 1_000_000)
+
+
+def warm_up(world, noisy: bool = False) -> None:
+    """Run, once, every compiled kernel a race calls, on a throwaway `world` (N cars): sensors
+    with focus and noise, the sub-step loop, the contact solver's narrow phase and response (car
+    0 is put on its barrier), the codec. Numba loads them from its disk cache (or compiles them)
+    now, before any client identifies, so no tick of the race waits for them (a first contact
+    would otherwise stall the race for a cache load, or a compile on a fresh install)."""
+    suite = SensorSuite(world, noisy=noisy, rng=np.random.default_rng(0))
+    cars = np.arange(world.n_cars)
+    suite.request_focus(cars, np.zeros(world.n_cars))
+    controls = np.zeros((world.n_cars, 5))
+    controls[:, 1] = 1.0
+    P.encode_sensor_rows(suite.frame().flat)   # on the grid: focus read
+    world.step(controls)
+    placements = np.zeros((world.n_cars, 3))
+    placements[:, 0] = 10.0 * cars          # the other cars in line behind, clear of car 0
+    placements[0] = (world.track.length / 2, float(world.track.barrier_left[0]), 10.0)
+    world.reset(placements)
+    for _ in range(2):
+        world.step(controls)
+    for style in ("cpp", "snakeoil"):
+        P.decode_controls_into(P.encode_controls(1.0, 0.0, 1, 0.0, style=style), np.zeros(8))
 
 
 def _port_list(ports: list[int]) -> str:

@@ -87,11 +87,13 @@ from madsim.physics.contact_kernels import (
     _membership,
     _respond,
     _settle,
+    advance_until_near,
+    advance_until_near_parallel,
 )
 from madsim.tracks.build import COL
 from madsim.tracks.kernels import GEO_KIND, GEO_R
 
-__all__ = ["ContactSolver", "ContactReport", "SLOP_M", "SKILL_SEMI_PRO", "WALL_YAW_SCALE",
+__all__ = ["ContactSolver", "ContactReport", "advance_until_near", "advance_until_near_parallel", "SLOP_M", "SKILL_SEMI_PRO", "WALL_YAW_SCALE",
            "WALL_YAW_MAX", "CAR_YAW_MAX", "CAR_DAMAGE_PER_NS", "FRONTAL_FACTOR"]
 
 _BODY_FIELDS = pmb.BodyFields.POSITION | pmb.BodyFields.ANGLE

@@ -13,6 +13,8 @@ import math
 import numba
 import numpy as np
 
+from madsim.physics.kernel import advance_car
+from madsim.physics.layout import S_PIECE
 from madsim.tracks.kernels import GEO_A0, GEO_KIND, GEO_LEN, GEO_R, GEO_S0, locate_from
 
 # --- TORCS response constants (spec torcs-car-format.md 4.12) ---------------------------------
@@ -595,3 +597,47 @@ def _settle(x, y, yaw, piece, cars, geo, bar, prm, pairs, meta, flags, slack, wa
         if not changed:
             break
     return count
+
+
+# --- the sub-step loop with the broad phase --------------------------------------------------------
+# World.step's compiled loop: advance every car one sub-step, run the broad phase, and stop at the
+# first sub-step that finds something near (there, and only there, the solver's `resolve` has
+# work). Plain module-level functions calling `_broad_phase` directly, so numba caches them on
+# disk like every other kernel (a stepper built around a first-class function argument was
+# compiled anew in every process: a ~1 s stall on a server's first tick).
+
+
+@numba.njit(cache=True, error_model="numpy")
+def advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
+                       x, y, yaw, piece, bp, near):
+    """Sub-steps k0.. of `kernel.advance_car` for all cars (state `st` (N, N_STATE)); after
+    each, `piece` (N,) is refreshed and `near[0]` = the broad phase's answer on the arrays
+    `bp` (ContactSolver.broad_phase_args). Returns the sub-steps done (nsub if nothing near)."""
+    for k in range(k0, nsub):
+        for i in range(st.shape[0]):
+            advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
+        if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
+            return k + 1
+    return nsub
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def advance_until_near_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
+                                x, y, yaw, piece, bp, near):
+    """`advance_until_near` with each sub-step's cars shared among threads (they are
+    independent within a sub-step: bit-identical); the broad phase stays serial."""
+    for k in range(k0, nsub):
+        for i in numba.prange(st.shape[0]):
+            advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
+        if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
+            return k + 1
+    return nsub
+
+
+@numba.njit(cache=True, inline="always")
+def _near_after_sub_step(st, x, y, yaw, piece, bp, near):
+    for i in range(st.shape[0]):
+        piece[i] = int(st[i, S_PIECE])
+    near[0] = _broad_phase(x, y, yaw, piece, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6],
+                           bp[7], bp[8], bp[9])
+    return near[0] != 0

@@ -12,11 +12,11 @@ import math
 import numba
 import numpy as np
 
+from madsim.facts import SCR_CPP_CLIENT_ANGLES_DEG, SCR_FIELDS
 from madsim.physics import layout as L
 from madsim.tracks.rays import cast_ray
 
-SCR_DEFAULT_ANGLES_DEG = (-90.0, -75.0, -60.0, -45.0, -30.0, -20.0, -15.0, -10.0, -5.0, 0.0,
-                          5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+SCR_DEFAULT_ANGLES_DEG = SCR_CPP_CLIENT_ANGLES_DEG   # a suite's angles before set_angles
 SENSOR_RANGE_M = 200.0
 FOCUS_COOLDOWN_S = 1.0
 FOCUS_NONE = 360.0          # SCR's "no focus requested" sentinel
@@ -25,10 +25,7 @@ MS_TO_KMH = 3.6
 
 
 # Wire order and widths (spec section 5); a frame's `flat` array holds the 79 values per car.
-SENSOR_WIDTHS = (("angle", 1), ("curLapTime", 1), ("damage", 1), ("distFromStart", 1), ("distRaced", 1),
-                 ("fuel", 1), ("gear", 1), ("lastLapTime", 1), ("opponents", 36), ("racePos", 1),
-                 ("rpm", 1), ("speedX", 1), ("speedY", 1), ("speedZ", 1), ("track", 19), ("trackPos", 1),
-                 ("wheelSpinVel", 4), ("z", 1), ("focus", 5))
+SENSOR_WIDTHS = tuple((f.name, f.width) for f in SCR_FIELDS)
 SENSOR_OFFSETS = {}
 _o = 0
 for _name, _w in SENSOR_WIDTHS:
@@ -39,7 +36,7 @@ N_VALUES = _o  # 79
  O_SX, O_SY, O_SZ, O_TRACK, O_TPOS, O_WSPIN, O_Z, O_FOCUS) = (SENSOR_OFFSETS[n][0] for n, _ in SENSOR_WIDTHS)
 
 SENSOR_ORDER = tuple(name for name, _ in SENSOR_WIDTHS)
-INT_FIELDS = ("damage", "gear", "racePos")
+INT_FIELDS = tuple(f.name for f in SCR_FIELDS if f.kind == "int")
 
 
 class SensorFrame:

@@ -12,59 +12,24 @@ import importlib
 import importlib.util
 import math
 
-import numba
 import numpy as np
 
 from madsim.cars.spec import CarSpec
+from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
 from madsim.physics import kernel
 from madsim.physics import layout as L
 from madsim.physics.tables import QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
 
-DT = 0.002
+DT = SUBSTEP_S
 """Physics sub-step, s (TORCS's simulation step)."""
-SUBSTEPS = 10
+SUBSTEPS = SUBSTEPS_PER_TICK
 """Sub-steps per tick: controls are held for DT * SUBSTEPS = 0.02 s."""
-TICK = DT * SUBSTEPS
+TICK = TICK_S
 
 NAN_POLICIES = ("raise", "zero")
 DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
 """TORCS's damage factor per skill level (spec 4.12), handed to the contact solver."""
-
-
-_STEPPERS: dict = {}
-
-
-def _contact_stepper(broad_phase, parallel: bool = False):
-    """Compiled sub-step loop that stops after the first sub-step at which the contact solver's
-    broad phase finds a car near something (there, and only there, `resolve` has work to do).
-    `parallel`: the cars of each sub-step are shared among numba's threads (they are
-    independent within a sub-step, so results are bit-identical); the broad phase stays serial.
-
-    Built per broad-phase function and not cached on disk: it links the contact module's
-    compiled code, and numba's disk cache would not notice a change of that module.
-    """
-    key = (broad_phase, parallel)
-    stepper = _STEPPERS.get(key)
-    if stepper is None:
-        advance_car = kernel.advance_car
-        s_piece = L.S_PIECE
-
-        @numba.njit(error_model="numpy", parallel=parallel)
-        def stepper(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
-                    x, y, yaw, piece, bp, near):
-            for k in range(k0, nsub):
-                for i in numba.prange(st.shape[0]):
-                    advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
-                for i in range(st.shape[0]):
-                    piece[i] = int(st[i, s_piece])
-                near[0] = broad_phase(x, y, yaw, piece, *bp)
-                if near[0] != 0:
-                    return k + 1
-            return nsub
-
-        _STEPPERS[key] = stepper
-    return stepper
 
 
 def contact_available() -> bool:
@@ -142,7 +107,7 @@ class World:
             self._near = np.zeros(1, dtype=np.int64)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
-            self._stepper = _contact_stepper(self._solver.broad_phase_kernel, parallel)
+            self._stepper = mod.advance_until_near_parallel if parallel else mod.advance_until_near
         self.reset()
 
     # --- set-up -------------------------------------------------------------------------------

@@ -198,6 +198,66 @@ def test_every_value_is_formatted_like_glibc_printf(floats, ints):
         assert encode_sensors(values) == expected_bytes
 
 
+EDGE_FLOATS = [0.0, -0.0, 1e-46, 1.401298464324817e-45, 1.1754943508222875e-38, 3.4028234663852886e38,
+               -3.4028234663852886e38, 1e-5, 9.99999e-5, 0.0001, 0.00099999, 99999.95, 99999.96,
+               100000.0, 999999.0, 999999.5, 999999.4, 1e6, 1234565.0, 1234575.0, 9.999995, 9.9999949,
+               0.5, 2.5, 16777215.0, 16777217.0, 123.4565, 1e38, 1e-38, 7.000005e-10]
+
+
+def _rows_oracle(values32: np.ndarray, ints: tuple) -> tuple[np.ndarray, bytes]:
+    """A float32 wire-order row holding `values32` (76 floats) and the three ints, and the
+    message glibc's snprintf("%g") / "%d" make of it."""
+    row, parts, it = [], [], iter(values32.tolist())
+    int_values = dict(zip(("gear", "racePos", "damage"), ints))
+    for f in SENSOR_FIELDS:
+        if f.kind == "int":
+            row.append(float(int_values[f.name]))
+            parts.append("(%s %d)" % (f.name, int_values[f.name]))
+        else:
+            vs = [next(it) for _ in range(f.width)]
+            row.extend(vs)
+            parts.append("(%s %s)" % (f.name, " ".join(c_g(v) for v in vs)))
+    return np.array(row, dtype=np.float32), ("".join(parts) + "\0").encode()
+
+
+@SETTINGS
+@given(st.lists(st.one_of(st.floats(width=32, allow_nan=False, allow_infinity=False),
+                          st.sampled_from(EDGE_FLOATS)), min_size=76, max_size=76),
+       st.tuples(st.integers(-1, 6), st.integers(1, 10), st.integers(0, 2**24)))
+def test_compiled_row_encoder_prints_like_glibc(floats, ints):
+    """The server's compiled encoder (encode_sensor_rows, several cars at once) against glibc;
+    rows it cannot do exactly fall back to the Python path, so the bytes always agree."""
+    values = np.array(floats, dtype=np.float32)
+    row, expected = _rows_oracle(values, ints)
+    row_b, expected_b = _rows_oracle(values[::-1], ints)
+    if len(expected) > 1000:
+        with pytest.raises(ProtocolError, match="999-byte limit"):
+            P.encode_sensor_rows(row[None, :])
+        return
+    if len(expected_b) <= 1000:
+        assert P.encode_sensor_rows(np.stack([row, row_b, row])) == [expected, expected_b, expected]
+    assert encode_sensors_flat(row) == expected
+    assert encode_sensors_flat(row.astype(np.float64)) == expected
+
+
+def test_compiled_encoder_leaves_near_ties_and_non_finite_rows_to_the_exact_path():
+    from madsim.net import codec_kernels as K
+
+    enc = P._DEFAULT_ENCODER
+    row, expected = _rows_oracle(np.full(76, 1.5, dtype=np.float32), (1, 1, 0))
+    rows = np.stack([row, row, row])
+    rows[1, 0] = 1234565.0           # exactly half way at the 6th digit: glibc rounds to even
+    rows[2, 0] = np.inf
+    out = np.zeros((3, enc._width), dtype=np.uint8)
+    length = np.zeros(3, dtype=np.int64)
+    K.encode_rows(rows, enc._is_int, enc._lit, enc._lit_end, enc.max_bytes, out, length)
+    assert length[0] == len(expected) and length[1] == -1 and length[2] == -1
+    messages = enc.encode_rows(rows)
+    assert messages[1].startswith(b"(angle " + c_g(1234565.0).encode() + b")")
+    assert c_g(1234565.0) == "1.23456e+06"
+    assert messages[2].startswith(b"(angle inf)")
+
+
 @SETTINGS
 @given(st.integers(0, 2**32 - 1))
 def test_fast_and_checked_paths_agree(seed):
@@ -586,6 +646,53 @@ def test_snakeoil_style_round_trip(accel, brake, gear, steer, clutch, focus, met
     for g, s in zip((got.accel, got.brake, got.steer, got.clutch), (accel, brake, steer, clutch)):
         assert g == pytest.approx(s, abs=5e-4 + 1e-7 * abs(s))  # %.3f, then float32
     assert got == P._decode_controls_general(data)
+
+
+def _same_as_decode_controls(data: bytes) -> bool:
+    """decode_controls_into agrees with decode_controls wherever it answers; returns whether
+    it answered."""
+    out = np.full(8, np.nan)
+    if not P.decode_controls_into(data, out):
+        return False
+    ctl = decode_controls(data)
+    assert ctl.well_formed
+    assert out[:5].tolist() == [ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch]
+    focus = int(out[5])
+    assert (focus if -90 <= focus <= 90 else None) == ctl.focus and int(out[6]) == ctl.meta
+    return True
+
+
+_PLAIN = st.floats(-1e6, 1e6).filter(lambda x: x == 0 or abs(x) > 1e-15)   # <= 15 digits, |exp| <= 22
+
+
+@SETTINGS
+@given(_PLAIN, _PLAIN, st.integers(-1, 7), _PLAIN, _PLAIN, st.integers(-400, 400),
+       st.integers(0, 1), st.sampled_from(["cpp", "snakeoil"]))
+def test_compiled_control_decoder_reads_stock_messages_like_the_reference(accel, brake, gear, steer,
+                                                                          clutch, focus, meta, style):
+    data = encode_controls(accel, brake, gear, steer, clutch, focus, meta, style=style)
+    assert _same_as_decode_controls(data)
+
+
+@SETTINGS
+@given(st.binary(max_size=120) | st.builds(
+    lambda a, b, c: a + b + c, st.sampled_from([b"(accel 1)(brake ", b"(accel -.5)(brake 0)(gear 2."]),
+    st.text("0123456789.eE+- ()", max_size=20).map(str.encode),
+    st.sampled_from([b")(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)", b")(steer 1)(clutch 0)(focus 0 1)(meta 1)\0",
+                     b")(clutch 0)(gear 1)(steer 0)(focus 5 6 7)(meta 0)", b""])))
+def test_compiled_control_decoder_answers_only_where_it_agrees(data):
+    _same_as_decode_controls(data)
+
+
+@pytest.mark.parametrize("data", [
+    b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)\0\0",    # two NULs
+    b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0) ",      # trailing space
+    b"(accel 1e400)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)",    # overflow
+    b"(accel 1.2345678901234567)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)",  # 17 digits
+    b"(accel 1)(brake 0)(gear 1e1)(steer 0)(clutch 0)(focus 0)(meta 0)",      # int with exponent
+    b"(accel 1)(brake 0)(gear 1)(steer 0)(clutch 0)(focus 0)(meta 0)" + b" " * 940])
+def test_compiled_control_decoder_leaves_the_unusual_to_the_reference(data):
+    assert not _same_as_decode_controls(data)
 
 
 def test_encode_controls_formats_like_the_stock_clients():

@@ -1,0 +1,325 @@
+"""Compiled SCR codec kernels: state rows -> message bytes, control bytes -> control values.
+
+The server's per-tick codec without per-field Python. Both kernels work on the car axis first
+and give up on a row (status -1) whenever exactness is not certain, so the caller re-does that
+row with the exact Python codec in `madsim.net.protocol`; the result is byte-identical to it
+(and so to the C++ scr_server: float32 values printed with glibc's `%g`).
+
+`encode_rows`: a value is printed by rounding it to 6 significant digits in double arithmetic.
+For a float32 value the scaled product is within ~1e-9 of the exact decimal expansion, so a
+rounding decision closer than `TIE_MARGIN` to a half is left to the exact path (it happens for
+about one value in 10^8), as are non-finite values, ints beyond 32 bits and over-long messages.
+
+`decode_controls_row`: the two stock control layouts (C++ client / pyScrcClient, and
+snakeoil) with plain decimal numbers of at most 15 significant digits and small exponents,
+where a double is exactly digits x 10^k with one rounding (then rounded to float32 as the
+C++ server stores it); anything else is left to the exact path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+TIE_MARGIN = 1e-7          # |fraction - 0.5| below this: the exact path decides the rounding
+MAX_VALUE_CHARS = 16       # the longest %g text of a float32 ("-1.23457e-05" is 12) or a C int
+
+_POW10 = np.array([10.0 ** k for k in range(23)])   # exact doubles
+
+
+@numba.njit(cache=True, inline="always")
+def _scale(a, p):
+    """a * 10^p for p in about [-40, 50] with at most a few roundings (a > 0)."""
+    if p >= 0:
+        while p > 22:
+            a *= 1e22
+            p -= 22
+        return a * _POW10[p]
+    p = -p
+    while p > 22:
+        a /= 1e22
+        p -= 22
+    return a / _POW10[p]
+
+
+@numba.njit(cache=True)
+def _put_int(out, i, pos, q):
+    """Decimal digits of q >= 0 at out[i, pos:]; returns the new end."""
+    if q == 0:
+        out[i, pos] = 48
+        return pos + 1
+    n = 0
+    t = q
+    while t > 0:
+        n += 1
+        t //= 10
+    for k in range(n - 1, -1, -1):
+        out[i, pos + k] = 48 + q % 10
+        q //= 10
+    return pos + n
+
+
+@numba.njit(cache=True)
+def _put_g(out, i, pos, f):
+    """C `printf("%g", f)` of a finite double `f` at out[i, pos:]; returns the new end, or -1 when
+    the 6-digit rounding is too close to a tie to decide in double arithmetic. The last 6
+    bytes of row i of `out` are scratch space."""
+    if f < 0.0 or (f == 0.0 and math.copysign(1.0, f) < 0.0):
+        out[i, pos] = 45   # '-'
+        pos += 1
+    a = abs(f)
+    if a == 0.0:
+        out[i, pos] = 48
+        return pos + 1
+    e = int(math.floor(math.log10(a)))
+    q = 0
+    for _ in range(3):   # the log10 estimate is off by one at most
+        x = _scale(a, 5 - e)
+        r = math.floor(x)
+        frac = x - r
+        if abs(frac - 0.5) < TIE_MARGIN:
+            return -1
+        q = int(r) + (1 if frac > 0.5 else 0)
+        if q >= 1000000:
+            if q == 1000000 and x < 1000000.0:   # rounded up to the next power of ten
+                q = 100000
+                e += 1
+                break
+            e += 1
+        elif q < 100000:
+            e -= 1
+        else:
+            break
+    # the 6 digits go to the scratch bytes at the end of `out` (constant divisions only)
+    scratch = out.shape[1] - 6
+    for k in range(5, -1, -1):
+        out[i, scratch + k] = 48 + q % 10
+        q //= 10
+    last = 5                  # %g drops trailing zeros of the fraction
+    while last > 0 and out[i, scratch + last] == 48:
+        last -= 1
+    if -4 <= e < 6:
+        if e >= 0:
+            for k in range(e + 1):
+                out[i, pos] = out[i, scratch + k]
+                pos += 1
+            if last > e:
+                out[i, pos] = 46   # '.'
+                pos += 1
+                for k in range(e + 1, last + 1):
+                    out[i, pos] = out[i, scratch + k]
+                    pos += 1
+        else:
+            out[i, pos] = 48
+            out[i, pos + 1] = 46
+            pos += 2
+            for _ in range(-e - 1):
+                out[i, pos] = 48
+                pos += 1
+            for k in range(last + 1):
+                out[i, pos] = out[i, scratch + k]
+                pos += 1
+        return pos
+    out[i, pos] = out[i, scratch]
+    pos += 1
+    if last > 0:
+        out[i, pos] = 46
+        pos += 1
+        for k in range(1, last + 1):
+            out[i, pos] = out[i, scratch + k]
+            pos += 1
+    out[i, pos] = 101   # 'e'
+    out[i, pos + 1] = 45 if e < 0 else 43
+    pos += 2
+    ae = abs(e)
+    if ae < 10:
+        out[i, pos] = 48
+        pos += 1
+    return _put_int(out, i, pos, ae)
+
+
+@numba.njit(cache=True)
+def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
+    """State messages of every row of `rows` (N, V) in wire order into `out` (N, W) uint8.
+
+    is_int (V,) bool: C int fields (printed `%d` of the value truncated toward zero), the others
+    float32 `%g`; `lit` uint8 with `lit_end` (V + 1,): the literal text before value k is
+    lit[lit_end[k-1]:lit_end[k]] (k = 0 from 0), the last segment closes the message, and a NUL
+    follows. length (N,): bytes of each message including its NUL, or -1 where the row needs
+    the exact Python path (see the module docstring)."""
+    n_values = rows.shape[1]
+    for i in range(rows.shape[0]):
+        pos = 0
+        start = 0
+        ok = True
+        for k in range(n_values + 1):
+            for j in range(start, lit_end[k]):
+                out[i, pos] = lit[j]
+                pos += 1
+            start = lit_end[k]
+            if k == n_values:
+                break
+            v = rows[i, k]
+            if is_int[k]:
+                if not abs(v) < 2147483648.0:
+                    ok = False
+                    break
+                t = int(v)
+                if t < 0:
+                    out[i, pos] = 45
+                    pos += 1
+                    t = -t
+                pos = _put_int(out, i, pos, t)
+            else:
+                f = np.float64(np.float32(v))
+                if not math.isfinite(f):
+                    ok = False
+                    break
+                pos = _put_g(out, i, pos, f)
+                if pos < 0:
+                    ok = False
+                    break
+            if pos > max_bytes:
+                ok = False
+                break
+        if ok and pos <= max_bytes:
+            out[i, pos] = 0
+            length[i] = pos + 1
+        else:
+            length[i] = -1
+
+
+# --- control messages ------------------------------------------------------------------------------
+
+# The tags of the two stock layouts, in order: C++ client / pyScrcClient, and snakeoil.
+CPP_ORDER = (b"accel", b"brake", b"gear", b"steer", b"clutch", b"focus", b"meta")
+SNAKEOIL_ORDER = (b"accel", b"brake", b"clutch", b"gear", b"steer", b"focus", b"meta")
+INT_TAGS = (b"gear", b"focus", b"meta")
+OUT_SLOT = {b"steer": 0, b"accel": 1, b"brake": 2, b"gear": 3, b"clutch": 4, b"focus": 5, b"meta": 6}
+
+
+def layout_table(order) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(text, ends, slots) of a layout for `decode_controls_row`: the literal `(tag ` texts
+    concatenated, their end offsets, and per group its output slot (+10 for an int group)."""
+    texts = [b"(" + tag + b" " for tag in order]
+    ends = np.cumsum([len(t) for t in texts]).astype(np.int64)
+    slots = np.array([OUT_SLOT[tag] + (10 if tag in INT_TAGS else 0) for tag in order], dtype=np.int64)
+    return np.frombuffer(b"".join(texts), dtype=np.uint8), ends, slots
+
+
+@numba.njit(cache=True, inline="always")
+def _is_digit(c):
+    return 48 <= c <= 57
+
+
+@numba.njit(cache=True, inline="always")
+def _sign(buf, pos, n):
+    """An optional '+' or '-' at buf[pos]: (negative, position after it)."""
+    if pos < n and (buf[pos] == 43 or buf[pos] == 45):
+        return buf[pos] == 45, pos + 1
+    return False, pos
+
+
+@numba.njit(cache=True)
+def _number(buf, pos, n, out, slot, is_int):
+    """Read `[+-]?(d+.?d*|.d+)([eE][+-]?d+)?` at buf[pos:n] (an int group: `[+-]?d+(.d*)?`)
+    into out[slot] (a float as the C++ server stores it: double, then float32; an int as is);
+    returns the end, or -1 if the token is not of that form or not exactly convertible here
+    (over 15 significant digits, a large exponent, over 9 int digits, float32 overflow)."""
+    neg, pos = _sign(buf, pos, n)
+    mant = 0
+    digits = 0
+    int_digits = 0
+    scale = 0               # value = mant * 10^scale
+    seen = 0
+    while pos < n and _is_digit(buf[pos]):
+        d = buf[pos] - 48
+        if digits < 15:
+            digits += 1 if mant > 0 or d > 0 else 0
+            mant = mant * 10 + d
+        elif d == 0:
+            scale += 1          # a 16th+ digit: exact only as a trailing zero
+        else:
+            return -1
+        int_digits += 1
+        seen += 1
+        pos += 1
+    if pos < n and buf[pos] == 46:   # '.'
+        pos += 1
+        while pos < n and _is_digit(buf[pos]):
+            d = buf[pos] - 48
+            if digits < 15:
+                digits += 1 if mant > 0 or d > 0 else 0
+                mant = mant * 10 + d
+                scale -= 1
+            elif d != 0:
+                return -1
+            seen += 1
+            pos += 1
+    if seen == 0:
+        return -1
+    if is_int:
+        if int_digits == 0 or int_digits > 9:
+            return -1
+        q = mant
+        for _ in range(-scale):       # the fraction digits of "1.000" drop out
+            q //= 10
+        for _ in range(scale):
+            q *= 10
+        out[slot] = -q if neg else q
+        return pos
+    if pos < n and (buf[pos] == 101 or buf[pos] == 69):   # 'e' / 'E'
+        eneg, pos = _sign(buf, pos + 1, n)
+        e = 0
+        ed = 0
+        while pos < n and _is_digit(buf[pos]):
+            e = min(e * 10 + (buf[pos] - 48), 1000)
+            ed += 1
+            pos += 1
+        if ed == 0:
+            return -1
+        scale += -e if eneg else e
+    if mant == 0:
+        value = 0.0
+    elif -22 <= scale <= 22:      # one correctly rounded operation (Clinger's fast path)
+        value = mant * _POW10[scale] if scale >= 0 else mant / _POW10[-scale]
+    else:
+        return -1
+    v32 = np.float64(np.float32(value))
+    if not math.isfinite(v32):
+        return -1
+    out[slot] = -v32 if neg else v32
+    return pos
+
+
+@numba.njit(cache=True)
+def decode_controls_row(buf, n, text, ends, slots, out):
+    """A control datagram buf[:n] (uint8) in one stock layout (`layout_table`), into out (7,):
+    steer, accel, brake, gear, clutch, focus, meta (floats float32-rounded). Returns True when
+    the datagram is exactly that layout (one number per group, extra focus numbers allowed,
+    an optional final NUL); False: out is unspecified and the exact Python parser decides."""
+    if n > 0 and buf[n - 1] == 0:
+        n -= 1
+    pos = 0
+    start = 0
+    for g in range(ends.shape[0]):
+        for j in range(start, ends[g]):
+            if pos >= n or buf[pos] != text[j]:
+                return False
+            pos += 1
+        start = ends[g]
+        slot = slots[g]
+        pos = _number(buf, pos, n, out, slot % 10, slot >= 10)
+        if pos < 0:
+            return False
+        if slot == 15:     # focus: snakeoil may send more directions; the first one counts
+            while pos < n and buf[pos] == 32:
+                pos = _number(buf, pos + 1, n, out, 7, False)
+                if pos < 0:
+                    return False
+        if pos >= n or buf[pos] != 41:   # ')'
+            return False
+        pos += 1
+    return pos == n
