@@ -12,6 +12,16 @@ class CliError(Exception):
     """A user-facing failure: printed as one line, exit status 2."""
 
 
+def output_path(text: str) -> Path:
+    """An output file's path with its folder created (as `-o gen/gen.xml` promises)."""
+    path = Path(text)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CliError(f"cannot create the folder of {text}: {exc.strerror}") from None
+    return path
+
+
 # --- tracks -------------------------------------------------------------------------------
 
 
@@ -69,7 +79,7 @@ def cmd_tracks_show(args) -> int:
     from madsim.tracks import load_track
 
     track = load_track(args.track)
-    save_track_map(track, args.output, marks_every_m=args.marks)
+    save_track_map(track, output_path(args.output), marks_every_m=args.marks)
     print(f"wrote {args.output} ({track.name}, {track.length:.2f} m)")
     return 0
 
@@ -81,7 +91,7 @@ def cmd_tracks_generate(args) -> int:
         text = generate_track_xml(args.seed, length_m=args.length, width_m=args.width, name=args.name)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    Path(args.output).write_text(text, encoding="utf-8")
+    output_path(args.output).write_text(text, encoding="utf-8")
     print(f"wrote {args.output}")
     return 0
 
@@ -96,6 +106,8 @@ def cmd_convert_track(args) -> int:
 
     track = load_track(args.input)
     out = Path(args.output)
+    if out.suffix in (COMPILED_SUFFIX, ".xml"):
+        output_path(args.output)
     if out.suffix == COMPILED_SUFFIX:
         save_compiled(track, out)
     elif out.suffix == ".xml":
@@ -112,6 +124,8 @@ def cmd_convert_car(args) -> int:
 
     spec = load_car(args.input)
     out = Path(args.output)
+    if out.suffix in (".json", ".xml"):
+        output_path(args.output)
     if out.suffix == ".json":
         out.write_text(car_to_json(spec), encoding="utf-8")
     elif out.suffix == ".xml":
@@ -134,8 +148,11 @@ def cmd_cars_list(args) -> int:
         return 0
     print(f"{'name':16s} {'category':16s} {'drive':5s} {'mass (kg)':>9s} {'power (kW)':>10s}  source")
     for r in rows:
-        print(f"{r['name']:16s} {str(r.get('category', '')):16s} {str(r.get('drive', '')):5s} "
-              f"{r.get('mass', float('nan')):9.0f} {r.get('power_kw', float('nan')):10.0f}  {r.get('source', '')}")
+        if r.get("error"):
+            print(f"{r['name']:16s} {'?':16s} {'?':5s} {'error':>9s} {'':>10s}  {r['source']}: {r['error'].splitlines()[0]}")
+            continue
+        print(f"{r['name']:16s} {r['category'] or '-':16s} {r['drive_type']:5s} "
+              f"{r['mass_kg']:9.0f} {r['power_kw']:10.0f}  {r['source']}")
     return 0
 
 
