@@ -172,10 +172,15 @@ def cmd_cars_info(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from madsim.run import run
+    from madsim.run import RunInterrupted, run
 
-    run(args.config, episodes=args.episodes, driver=args.driver, seed=args.seed, video=args.video,
-        plot=args.plot, render=args.render, progress=not args.quiet)
+    try:
+        run(args.config, episodes=args.episodes, driver=args.driver, seed=args.seed, video=args.video,
+            plot=args.plot, render=args.render, progress=not args.quiet, host=args.host, port=args.port,
+            max_steps=args.max_steps)
+    except RunInterrupted as exc:
+        print(f"madsim run: {exc}", file=sys.stderr, flush=True)
+        return exc.status
     return 0
 
 
@@ -268,12 +273,18 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="drive a scenario (default: one lap of madsim-road with traffic)")
     r.add_argument("config", nargs="?", default=None, help="scenario YAML (default: the bundled run scenario)")
     r.add_argument("--episodes", type=int, default=1)
-    r.add_argument("--driver", default="pid", help="pid (built-in), random, or the path of a saved policy")
+    r.add_argument("--driver", default="pid",
+                   help="pid: the built-in driver fitting each agent's action space (T-S: lane and speed "
+                        "through the PID; S-A-B: steering and pedals); random; or a saved policy")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--video", default=None, help="write the episode as out.mp4 or out.gif")
     r.add_argument("--plot", default=None, help="write trajectories and speed/trackPos plots (PNG)")
     r.add_argument("--render", action="store_true", help="open a window")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--max-steps", type=int, default=None, help="end each episode after this many env steps")
+    r.add_argument("--port", type=int, default=None,
+                   help="drive the cars of a running SCR server (madsim serve, TORCS) from this UDP port on")
+    r.add_argument("--host", default="127.0.0.1", help="the SCR server's host (with --port)")
     r.set_defaults(func=cmd_run)
 
     tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
