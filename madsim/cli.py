@@ -225,8 +225,7 @@ def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fu
 
 
 def cmd_serve(args) -> int:
-    import signal
-
+    from madsim.interrupts import StopRequest
     from madsim.net.server import ScrServer, ServerError
 
     cars = [c for c in args.cars.split(",") if c]
@@ -236,26 +235,43 @@ def cmd_serve(args) -> int:
                        seed=args.seed, laps=args.laps, max_ticks=args.max_ticks, countdown_ticks=args.countdown,
                        start_timeout_s=args.start_timeout, client_deadline_s=args.client_deadline,
                        log=lambda m: print(f"madsim serve: {m}", flush=True), log_csv=args.log_csv)
-    signal.signal(signal.SIGTERM, lambda *_: server.stop())
     try:
         server.open()
     except ServerError as exc:
         raise CliError(str(exc)) from None
     print(f"madsim serve: {args.track}, {args.clients} car(s), mode {args.mode}, "
           f"ports {args.port}..{args.port + args.clients - 1} on {args.host}", flush=True)
-    try:
-        server.serve()
-    except ServerError as exc:
-        raise CliError(str(exc)) from None
+    with StopRequest(on_stop=server.stop) as stop:
+        try:
+            server.serve()
+        except ServerError as exc:
+            raise CliError(str(exc)) from None
+    if stop:
+        print(f"madsim serve: stopped by {stop.signal_name}"
+              + (f"; trace in {args.log_csv}" if args.log_csv else ""), file=sys.stderr, flush=True)
+        return stop.exit_status
     return 0
 
 
 def cmd_drive(args) -> int:
-    from madsim.net.client import ScrClient, simple_driver
+    import math
+
+    from madsim.net.client import ScrClient, ScrTimeout, simple_driver
 
     drivers = {"simple": simple_driver}
-    client = ScrClient(host=args.host, port=args.port, client_id=args.id)
-    outcome, steps = client.run(drivers[args.driver], max_steps=args.max_steps)
+    if not args.wait > 0:
+        raise CliError(f"--wait must be > 0 seconds, got {args.wait}")
+    client = ScrClient(host=args.host, port=args.port, client_id=args.id,
+                       identify_tries=max(1, math.ceil(args.wait)), silent_tries=max(1, math.ceil(args.wait)))
+    print(f"madsim drive: looking for an SCR server on {args.host}:{args.port} (up to {args.wait:g} s) ...",
+          flush=True)
+    try:
+        outcome, steps = client.run(drivers[args.driver], max_steps=args.max_steps)
+    except ScrTimeout:
+        raise CliError(f"no SCR server answered on {args.host}:{args.port} within {args.wait:g} s "
+                       "(start one with `madsim serve`, or a TORCS race with scr_server cars)") from None
+    finally:
+        client.close()
     print(f"madsim drive: {outcome} after {steps} steps")
     return 0
 
@@ -263,26 +279,65 @@ def cmd_drive(args) -> int:
 # --- parser -------------------------------------------------------------------------------
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage block): `madsim run: error: ...`."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _int(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    value = _int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a seed, an integer >= 0 (numpy's seeds are non-negative)."""
+    value = _int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a seed must be >= 0, got {value}")
+    return value
+
+
+def udp_port(text: str) -> int:
+    """argparse type: a UDP port, 1..65535."""
+    value = _int(text)
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a UDP port is 1..65535, got {value}")
+    return value
+
+
+
 def build_parser() -> argparse.ArgumentParser:
     from madsim import __version__
 
-    p = argparse.ArgumentParser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
+    p = Parser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
     p.add_argument("--version", action="version", version=f"madsim {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="drive a scenario (default: one lap of madsim-road with traffic)")
     r.add_argument("config", nargs="?", default=None, help="scenario YAML (default: the bundled run scenario)")
-    r.add_argument("--episodes", type=int, default=1)
+    r.add_argument("--episodes", type=positive_int, default=1)
     r.add_argument("--driver", default="pid",
                    help="pid: the built-in driver fitting each agent's action space (T-S: lane and speed "
                         "through the PID; S-A-B: steering and pedals); random; or a saved policy")
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--seed", type=seed_int, default=0)
     r.add_argument("--video", default=None, help="write the episode as out.mp4 or out.gif")
     r.add_argument("--plot", default=None, help="write trajectories and speed/trackPos plots (PNG)")
     r.add_argument("--render", action="store_true", help="open a window")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--max-steps", type=int, default=None, help="end each episode after this many env steps")
-    r.add_argument("--port", type=int, default=None,
+    r.add_argument("--max-steps", type=positive_int, default=None, help="end each episode after this many env steps")
+    r.add_argument("--port", type=udp_port, default=None,
                    help="drive the cars of a running SCR server (madsim serve, TORCS) from this UDP port on")
     r.add_argument("--host", default="127.0.0.1", help="the SCR server's host (with --port)")
     r.set_defaults(func=cmd_run)
@@ -333,7 +388,7 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--cars", default="madsim-sedan", help="comma-separated car names, one per client")
     sv.add_argument("--clients", type=int, default=1)
     sv.add_argument("--host", default="127.0.0.1")
-    sv.add_argument("--port", type=int, default=3001)
+    sv.add_argument("--port", type=udp_port, default=3001)
     sv.add_argument("--laps", type=int, default=None)
     sv.add_argument("--mode", choices=["sync", "timeout", "realtime"], default="sync")
     sv.add_argument("--timeout-ms", type=float, default=10.0)
@@ -353,11 +408,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     dv = sub.add_parser("drive", help="drive one car of a scr_server with the built-in simple driver")
     dv.add_argument("--host", default="127.0.0.1")
-    dv.add_argument("--port", type=int, default=3001)
+    dv.add_argument("--port", type=udp_port, default=3001)
     dv.add_argument("--id", default="SCR")
     dv.add_argument("--driver", choices=["simple"], default="simple",
                     help="simple: steer to the track axis, slow for bends, shift by rpm")
     dv.add_argument("--max-steps", type=int, default=None)
+    dv.add_argument("--wait", type=float, default=30.0,
+                    help="seconds to look for the server (and to wait for it mid-race) before giving up")
     dv.set_defaults(func=cmd_drive)
 
     from madsim.agents.traffic_client import add_traffic_parser

@@ -22,8 +22,11 @@ __all__ = ["StopRequest"]
 class StopRequest:
     """A flag set by SIGINT or SIGTERM while the `with` block runs; truthy once set."""
 
-    def __init__(self):
+    def __init__(self, on_stop=None):
+        """on_stop: called (from the signal handler) when the first signal arrives, e.g. a
+        server's thread-safe `stop`."""
         self.signum: int | None = None
+        self.on_stop = on_stop
         self._previous: dict = {}
 
     def __bool__(self) -> bool:
@@ -42,6 +45,8 @@ class StopRequest:
         if self.signum is not None:
             raise KeyboardInterrupt
         self.signum = signum
+        if self.on_stop is not None:
+            self.on_stop()
 
     def __enter__(self) -> StopRequest:
         if threading.current_thread() is threading.main_thread():

@@ -36,6 +36,7 @@ from madsim.physics.sensors import FOCUS_NONE, SENSOR_OFFSETS, SensorSuite
 
 TICK_S = 0.02
 MODES = ("sync", "timeout", "realtime")
+STOP_POLL_S = 0.2   # longest wait for a client before a stop() request is looked at again
 COUNTDOWN_TICKS = 49          # TORCS polls robots ~49 times during the start countdown (§4.3)
 MAX_DAMAGE = 10000.0          # a car above this is out of the race (TORCS default)
 CSV_FIELDS = ("tick", "time", "car", "x", "y", "yaw", "distFromStart", "trackPos", "angle",
@@ -367,9 +368,9 @@ class ScrServer:
             pending = {c.sock: c for c in cars if c.index not in final}
             deadline = {c.index: tick_end if tick_end is not None else
                         start + (self.client_deadline_s if c.sync else self.timeout_s) for c in pending.values()}
-            while pending:
+            while pending and not self._stop:
                 wait = min(deadline[c.index] for c in pending.values()) - time.monotonic()
-                ready, _, _ = select.select(list(pending), [], [], max(0.0, wait))
+                ready, _, _ = select.select(list(pending), [], [], max(0.0, min(wait, STOP_POLL_S)))
                 for sock in ready:
                     c = pending[sock]
                     if (data := self._read_from_client(c)) is not None:
@@ -396,7 +397,7 @@ class ScrServer:
         got: dict[int, bytes] = {}
         deadline = time.monotonic() + self.client_deadline_s
         for c in cars:
-            while (data := self._read_from_client(c)) is None:
+            while (data := self._read_from_client(c)) is None and not self._stop:
                 wait = deadline - time.monotonic()
                 if wait <= 0:
                     c.sync = False
@@ -404,7 +405,7 @@ class ScrServer:
                              f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
                              f"per tick until it answers again")
                     break
-                select.select([c.sock], [], [], wait)
+                select.select([c.sock], [], [], min(wait, STOP_POLL_S))   # a stop() is seen in time
             if data is not None:
                 got[c.index] = data
         return got
