@@ -13,6 +13,7 @@ __all__ = ["add_parsers", "cmd_plot", "cmd_train", "main"]
 
 
 def cmd_train(args) -> int:
+    from madsim.interrupts import StopRequest
     from madsim.train.evaluate import format_table
     from madsim.train.sb3 import TrainSettings, train
 
@@ -22,7 +23,12 @@ def cmd_train(args) -> int:
                              gamma=args.gamma, ent_coef=args.ent_coef,
                              progress=not args.no_progress,
                              native_vec={"auto": None, "native": True, "sync": False}[args.vec])
-    record = train(args.config, args.out, settings, overwrite=args.overwrite)
+    with StopRequest() as stop:
+        record = train(args.config, args.out, settings, overwrite=args.overwrite, stop=stop)
+    if stop:
+        print(f"madsim train: interrupted by {stop.signal_name} after {record['timesteps']} steps; "
+              f"saved {args.out}/policy.zip", file=sys.stderr, flush=True)
+        return stop.exit_status
     print(f"madsim train: {record['timesteps']} steps in {record['wall_s']} s "
           f"({record['steps_per_s']} steps/s); policy: {args.out}/policy.zip")
     print(format_table([record["final_eval"]]))
