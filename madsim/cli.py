@@ -340,6 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--port", type=udp_port, default=None,
                    help="drive the cars of a running SCR server (madsim serve, TORCS) from this UDP port on")
     r.add_argument("--host", default="127.0.0.1", help="the SCR server's host (with --port)")
+    add_import_option(r)
     r.set_defaults(func=cmd_run)
 
     tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
@@ -378,9 +379,11 @@ def build_parser() -> argparse.ArgumentParser:
     gsub = cfg.add_subparsers(dest="config_command", required=True)
     g = gsub.add_parser("check", help="validate a config file (MADRaS files accepted)")
     g.add_argument("file")
+    add_import_option(g)
     g.set_defaults(func=cmd_config_check)
     g = gsub.add_parser("show", help="print the fully resolved config with defaults")
     g.add_argument("file")
+    add_import_option(g)
     g.set_defaults(func=cmd_config_show)
 
     sv = sub.add_parser("serve", help="a drop-in TORCS scr_server on UDP")
@@ -439,10 +442,21 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def add_import_option(parser) -> None:
+    """`--import MODULE_OR_FILE` (repeatable): the user's rewards, dones, behaviours."""
+    parser.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
+                        help="import this module or .py file first (registers your rewards, dones, "
+                             "traffic behaviours); repeatable; or list them under `plugins:` in the YAML")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if getattr(args, "imports", None):
+            from madsim.plugins import import_plugins
+
+            import_plugins(args.imports)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # e.g. `madsim tracks list | head`
         sys.stderr.close()

@@ -65,6 +65,9 @@ def add_parsers(sub, *, with_plot: bool = True) -> None:
                         "of MadrasEnv (sync), or native when installed (auto)")
     t.add_argument("--overwrite", action="store_true", help="reuse an --out folder holding a run")
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
+    t.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
+                   help="import this module or .py file first (registers your rewards, dones, "
+                        "traffic behaviours); repeatable; or list them under `plugins:` in the YAML")
     t.set_defaults(func=cmd_train)
 
     if not with_plot:
@@ -80,6 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     add_parsers(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
     try:
+        if getattr(args, "imports", None):
+            from madsim.plugins import import_plugins
+
+            import_plugins(args.imports)
         return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:
         print(f"madsim: error: {exc}", file=sys.stderr)
