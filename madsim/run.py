@@ -25,7 +25,8 @@ from madsim.interrupts import StopRequest
 
 DEFAULT_CONFIG = "run_default.yml"
 TICK_S = 0.02
-GIF_SIZE = (480, 360)       # a GIF worth sharing: small frames, few of them (render.video.GIF_FPS)
+GIF_SIZE = (400, 300)       # a GIF worth sharing (a lap in a few MB): small frames, few of them
+GIF_FPS = 5.0
 VIDEO_SIZE = (800, 600)
 
 
@@ -130,7 +131,7 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
     view = writer = window = None
     if video:
         from madsim.render.envview import EnvView
-        from madsim.render.video import GIF_FPS, VideoWriter
+        from madsim.render.video import VideoWriter
 
         gif = Path(video).suffix.lower() == ".gif"
         view = EnvView("rgb_array", size=GIF_SIZE if gif else VIDEO_SIZE, camera="follow")
@@ -211,7 +212,9 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
         raise RunInterrupted(f"{why} in episode {ep + 1}/{episodes} after {ticks_done} ticks; {files}",
                              stop.exit_status if stop else 0)
     if video:
-        log(f"wrote {video} ({written} frames)")
+        gif = Path(video).suffix.lower() == ".gif"
+        log(f"wrote {video} ({written} frames" + (f", {GIF_SIZE[0]}x{GIF_SIZE[1]} at {GIF_FPS:g} frames/s: "
+                                                  "an .mp4 has full size and rate)" if gif else ")"))
     return all_stats
 
 
