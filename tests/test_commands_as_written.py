@@ -1,23 +1,25 @@
 """Every command of README.md and docs/*.md runs as written (issue 14), in one temporary folder.
 
-What runs, and how (nothing is skipped without a reason listed here):
+What runs, and how (nothing is left out without a reason listed here):
 - every line of every ```bash block, in document order (README.md, then docs/*.md by name), in
   one temporary folder holding a link to the repository's `examples/`, as a reader of a clone
-  would run them; `madsim ...` commands in this process through `madsim.cli.main(argv)` (what
+  would run them: `madsim ...` commands in this process through `madsim.cli.main(argv)` (what
   the `madsim` script calls; kernels compile once for all of them), background ones (`... &`)
-  as real `madsim` processes, waited for after their block; other lines through bash;
-- every ```python block of README.md in one fresh Python process;
-- bounded budgets (the commands are otherwise exactly as written):
-  `madsim serve` + `--max-ticks 600` and its ports moved from 3001.. to a free range (so tests
-  running side by side cannot meet; `--port` of drive/traffic moved alike), `madsim run`
-  + `--max-steps 200`, `madsim train --steps N` -> `--steps 256 --n-steps 64 --eval-episodes 1`,
-  `.learn(N)` -> `.learn(512)`, `python examples/rllib_bottleneck.py` -> `--iterations 1` with a
-  small batch (in its own test: Ray starts in ~20 s); `~` is the temporary folder (HOME);
-- not run, each for its stated reason (asserted to be exactly these lines): the two set-up
-  commands (`python3 -m venv ...`: CI's `.ci/run` runs them in a fresh environment), `pip
-  install ...` (the tests reuse one install), `ray start ...` (needs a Ray cluster); the
-  python blocks of docs/howto.md run in tests/test_docs.py. Commands naming TORCS's own tracks
-  and cars need Debian's torcs-data: without it they are listed and skipped.
+  in threads, joined after their block; other lines through bash, `~` being the folder;
+- the ```python blocks of README.md and docs/rendering.md, each file's in order as one script
+  in a fresh process; docs/howto.md's run in tests/test_docs.py; the python fragments of
+  docs/training.md and docs/traffic.md continue earlier context (`obs`, a cluster) and are not run;
+- bounded budgets (the commands are otherwise exactly as written): `madsim serve` +
+  `--max-ticks 300`, its ports moved from 3001.. to a free range (tests running side by side
+  cannot meet; `--port` of drive/traffic moved alike); `madsim run` + `--max-steps 200`;
+  `madsim train --steps N` -> `--steps 256 --n-steps 64 --eval-episodes 1`; `.learn(N)` ->
+  `.learn(512)`; `python examples/rllib_bottleneck.py` -> `--iterations 1` with a small batch,
+  in its own test (Ray starts in ~20 s);
+- not run, for the stated reason (asserted to be exactly these lines): the two set-up commands
+  (`python3 -m venv ...`: CI's `.ci/run` runs them in a fresh environment), `pip install ...`
+  (the tests reuse one install), `ray start ...` and `--address auto` (need a Ray cluster).
+  Commands naming TORCS's own tracks and cars need Debian's torcs-data: without it they are
+  listed in the skip message.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import shlex
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -44,7 +47,7 @@ NOT_RUN = {
 }
 RLLIB_EXAMPLE = "python examples/rllib_bottleneck.py"   # run in its own test (Ray starts slowly)
 TORCS_ASSETS = ("alpine-1", "g-track-1", "spring", "car1-trb1")
-SERVE_MAX_TICKS = 600
+SERVE_MAX_TICKS = 300
 RUN_MAX_STEPS = 200
 
 
@@ -112,9 +115,11 @@ def _budget(argv: list[str], base: int) -> list[str]:
     return argv
 
 
-def _madsim_exe() -> list[str]:
-    script = Path(sys.executable).with_name("madsim")
-    return [str(script)] if script.is_file() else [sys.executable, "-m", "madsim.cli"]
+def _main(main, argv: list[str]):
+    try:
+        return main(argv[1:])
+    except SystemExit as exc:       # argparse's own errors
+        return exc.code
 
 
 def _torcs_data() -> bool:
@@ -156,7 +161,7 @@ def test_every_readme_and_docs_command_runs_as_written(folder, monkeypatch):
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
     ran, skipped_torcs, failures = [], [], []
     for doc in DOCS:
-        background: list[tuple[str, subprocess.Popen]] = []
+        background: list[tuple[str, threading.Thread, list]] = []
         for line in _commands(doc):
             if _not_run_reason(line) or line.startswith(RLLIB_EXAMPLE):
                 continue
@@ -179,29 +184,22 @@ def test_every_readme_and_docs_command_runs_as_written(folder, monkeypatch):
                 argv = _budget(argv, base)
                 ran.append(part)
                 if in_background:
-                    background.append((part, subprocess.Popen(_madsim_exe() + argv[1:], cwd=folder, env=env,
-                                                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                                              text=True)))
-                    time.sleep(0.5)
+                    result: list = []
+                    thread = threading.Thread(target=lambda a=argv, r=result: r.append(_main(main, a)), daemon=True)
+                    thread.start()
+                    background.append((part, thread, result))
+                    time.sleep(0.3)
                     continue
-                err = io.StringIO()
-                with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-                    try:
-                        status = main(argv[1:])
-                    except SystemExit as exc:       # argparse's own errors
-                        status = exc.code
+                with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+                    status = _main(main, argv)
                 if status != 0:
                     failures.append(f"{doc.name}: {part} -> {status}: {err.getvalue().strip()[-300:]}")
-        for part, proc in background:
-            try:
-                out, _ = proc.communicate(timeout=60)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                out, _ = proc.communicate()
+        for part, thread, result in background:
+            thread.join(timeout=60)
+            if thread.is_alive():
                 failures.append(f"{doc.name}: {part}: still running after its block")
-                continue
-            if proc.returncode != 0:
-                failures.append(f"{doc.name}: {part} -> {proc.returncode}: {out.strip()[-300:]}")
+            elif result != [0]:
+                failures.append(f"{doc.name}: {part} -> {result}")
     assert not failures, "\n".join(failures)
     assert len(ran) >= 30
     assert (folder / "madsim-run.png").is_file() if any("--plot madsim-run.png" in r for r in ran) else True
