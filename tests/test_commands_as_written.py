@@ -29,7 +29,6 @@ import io
 import os
 import re
 import shlex
-import socket
 import subprocess
 import sys
 import threading
@@ -37,6 +36,7 @@ import time
 from pathlib import Path
 
 import pytest
+from udp import free_ports
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
@@ -69,29 +69,6 @@ def _all_commands() -> list[tuple[str, str]]:
 
 def _not_run_reason(line: str) -> str | None:
     return next((why for pat, why in NOT_RUN.items() if re.search(pat, line)), None)
-
-
-def _free_port_base(n: int = 8) -> int:
-    """A base port with n free UDP ports above it (checked by binding)."""
-    for _ in range(50):
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            s.bind(("127.0.0.1", 0))
-            base = s.getsockname()[1]
-        if base + n > 65535:
-            continue
-        socks = []
-        try:
-            for k in range(n):
-                t = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(t)
-                t.bind(("127.0.0.1", base + k))
-            return base
-        except OSError:
-            continue
-        finally:
-            for t in socks:
-                t.close()
-    raise RuntimeError("no free UDP port range")
 
 
 def _budget(argv: list[str], base: int) -> list[str]:
@@ -154,7 +131,7 @@ def test_the_listed_commands_are_the_ones_not_run():
 def test_every_readme_and_docs_command_runs_as_written(folder, monkeypatch):
     from madsim.cli import main
 
-    base = _free_port_base()
+    base = free_ports(8)
     have_torcs = _torcs_data()
     monkeypatch.chdir(folder)
     monkeypatch.setenv("HOME", str(folder))
