@@ -13,7 +13,7 @@ __all__ = ["add_parsers", "cmd_plot", "cmd_train", "main"]
 
 
 def cmd_train(args) -> int:
-    from madsim.interrupts import StopRequest
+    from madsim.interrupts import StopRequest, exit_now
     from madsim.train.evaluate import format_table
     from madsim.train.sb3 import TrainSettings, train
 
@@ -23,11 +23,12 @@ def cmd_train(args) -> int:
                              gamma=args.gamma, ent_coef=args.ent_coef,
                              progress=not args.no_progress,
                              native_vec={"auto": None, "native": True, "sync": False}[args.vec])
-    with StopRequest() as stop:
+    with StopRequest(grace_s=0.5) as stop:   # a step held up (e.g. compiling) is interrupted after 0.5 s
         record = train(args.config, args.out, settings, overwrite=args.overwrite, stop=stop)
     if stop:
         print(f"madsim train: interrupted by {stop.signal_name} after {record['timesteps']} steps; "
               f"saved {args.out}/policy.zip", file=sys.stderr, flush=True)
+        exit_now(stop.exit_status)      # every file is closed: skip torch's slow teardown
         return stop.exit_status
     print(f"madsim train: {record['timesteps']} steps in {record['wall_s']} s "
           f"({record['steps_per_s']} steps/s); policy: {args.out}/policy.zip")

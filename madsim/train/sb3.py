@@ -330,8 +330,14 @@ def train(config, out_dir, settings: TrainSettings, *, overwrite: bool = False, 
     periodic = _callbacks(run_dir, cfg, settings, t0, stop)
     try:
         model.learn(total_timesteps=settings.steps, callback=periodic)
+    except KeyboardInterrupt:
+        if not stop:     # a stop request's grace ran out (the step was held up): save what there is
+            raise
     finally:
+        if stop:
+            stop.settle()
         venv.close()
+        model.logger.close()          # progress.csv complete on disk, whatever comes next
     wall = time.time() - t0
     model.save(run_dir / "policy.zip")
     record.update(timesteps=int(model.num_timesteps), wall_s=round(wall, 1),
