@@ -26,8 +26,9 @@ def test_every_shipped_scenario_runs_with_the_builtin_driver(path):
     stats = run(str(path), max_steps=math.ceil(TICKS / latency), progress=False, log=lines.append)[0]
     learners = [s for s in stats if s.kind == "learner"]
     assert [s.label for s in learners] == [a.name for a in cfg.agents]
-    table = lines[0].splitlines()
+    table = lines[-1].splitlines()
     assert "ended by" in table[0] and len(table) == 2 + len(stats)       # the table: header + one row per car
+    assert "start-up (loading, compiling kernels)" in table[0]          # compile time apart from the run's
     for s in learners:
         assert s.ticks >= 100, (s.label, s.ticks)
         assert np.isfinite(s.speed).all() and np.isfinite(s.x).all()
@@ -74,3 +75,21 @@ def test_run_drives_the_cars_of_a_running_scr_server():
     assert driver.ticks >= 300 and max(driver.speed) > 40.0 and driver.off_track_ticks == 0
     table = lines[0].splitlines()
     assert table[0].startswith("madsim-road:") and table[2].split()[0] == "driver"
+
+
+def test_a_slow_start_says_that_kernels_are_compiling():
+    """Issue 14 item 7: while the first step waits (numba compiling), one line says what it is."""
+    import time
+
+    from madsim.run import _slow_start_notice
+
+    said = []
+    timer = _slow_start_notice(said.append, after_s=0.05)
+    time.sleep(0.5)
+    timer.cancel()
+    assert len(said) == 1 and "compiling" in said[0] and "cached" in said[0]
+    said.clear()
+    timer = _slow_start_notice(said.append, after_s=0.5)
+    timer.cancel()                       # the first step came in time: nothing said
+    time.sleep(0.7)
+    assert said == []
