@@ -48,13 +48,13 @@ def rss_mb() -> float:
     return float("nan")
 
 
-def soak(ticks: int, report_every: int, seed: int, log=print) -> dict:
-    """Run `ticks` ticks; returns {ticks, episodes, nonfinite, rss_mb: [(ticks, MB), ...],
-    growth_mb}. The growth is measured from the first report."""
+def soak(ticks: int, report_every: int, seed: int, log=print, config=None) -> dict:
+    """Run `ticks` ticks of `config` (default CONFIG); returns {ticks, episodes, nonfinite,
+    rss_mb: [(ticks, MB), ...], growth_mb, wall_s}. The growth is measured from the first report."""
     from madsim.envs import MadrasEnv
 
     rng = np.random.default_rng(seed)
-    env = MadrasEnv(CONFIG)
+    env = MadrasEnv(CONFIG if config is None else config)
     world_of = lambda: env.unwrapped.core.backend.world  # noqa: E731 (the World is rebuilt per track)
     obs, _ = env.reset(seed=seed)
     done_ticks = episodes = nonfinite = 0
