@@ -222,3 +222,10 @@ def test_the_rllib_example_names_the_extra_when_ray_is_missing(folder):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip().count("\n") == 0 and "pip install 'madsim[train,rllib]'" in proc.stderr
+
+
+def test_readme_lists_every_registered_id():
+    from madsim.envs.registration import CONFIGS
+
+    listed = set(re.findall(r"`(madsim/\w+-v\d)`", (ROOT / "README.md").read_text()))
+    assert listed == set(CONFIGS), (listed ^ set(CONFIGS))
