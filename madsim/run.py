@@ -111,7 +111,6 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
     check_run_options(episodes=episodes, seed=seed, port=port, max_steps=max_steps)
     log = log or (lambda line: print(line, flush=True))
     t0 = time.perf_counter()
-    notice = _slow_start_notice(log)
     if config is None and driver not in ("pid", "random"):
         config = _policy_config(driver)   # a policy drives the scenario it learned on
     config = config or str(default_config_path())
@@ -124,10 +123,19 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
         from madsim.envs.backends import ScrBackend
 
         backend = ScrBackend(host, port)
-    env = MadrasParallelEnv(config, backend=backend)
+    notice = _slow_start_notice(log)
+    try:
+        env = MadrasParallelEnv(config, backend=backend)
+    except BaseException:
+        notice.cancel()
+        raise
     core = env.core
-    agents = list(core.config.agents)
-    act = _drivers_for(driver, env, agents)
+    try:
+        act = _drivers_for(driver, env, list(core.config.agents))
+    except BaseException:
+        notice.cancel()
+        env.close()
+        raise
     view = writer = window = None
     if video:
         from madsim.render.envview import EnvView
@@ -184,8 +192,10 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
                     bar.update(ticks)
                     sim_s = (core.tick - sim0) * TICK_S
                     if writer is not None and sim_s >= next_frame_s:
-                        writer.append(view.render(core))
-                        next_frame_s += frame_every_s
+                        frame = view.render(core)
+                        while sim_s >= next_frame_s:     # a step longer than a frame: the video keeps time
+                            writer.append(frame)
+                            next_frame_s += frame_every_s
                     if window is not None:
                         window.render(core)
                         if window.window_closed:
