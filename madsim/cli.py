@@ -332,7 +332,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pid: the built-in driver fitting each agent's action space (T-S: lane and speed "
                         "through the PID; S-A-B: steering and pedals); random; or a saved policy")
     r.add_argument("--seed", type=seed_int, default=0)
-    r.add_argument("--video", default=None, help="write the episode as out.mp4 or out.gif")
+    r.add_argument("--video", default=None,
+                   help="write the episodes as out.mp4 (800x600, 25 frames/s) or out.gif (400x300, 5 frames/s: "
+                        "about 5 MB a lap)")
     r.add_argument("--plot", default=None, help="write trajectories and speed/trackPos plots (PNG)")
     r.add_argument("--render", action="store_true", help="open a window")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
