@@ -225,6 +225,8 @@ def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fu
 
 
 def cmd_serve(args) -> int:
+    import signal
+
     from madsim.interrupts import StopRequest
     from madsim.net.server import ScrServer, ServerError
 
@@ -241,7 +243,8 @@ def cmd_serve(args) -> int:
         raise CliError(str(exc)) from None
     print(f"madsim serve: {args.track}, {args.clients} car(s), mode {args.mode}, "
           f"ports {args.port}..{args.port + args.clients - 1} on {args.host}", flush=True)
-    with StopRequest(on_stop=server.stop) as stop:
+    # SIGTERM stops the loop at the next wait; Ctrl-C stays the server's own KeyboardInterrupt
+    with StopRequest(on_stop=server.stop, signals=(signal.SIGTERM,)) as stop:
         try:
             server.serve()
         except ServerError as exc:

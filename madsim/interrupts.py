@@ -25,9 +25,12 @@ __all__ = ["StopRequest", "exit_now"]
 class StopRequest:
     """A flag set by SIGINT or SIGTERM while the `with` block runs; truthy once set."""
 
-    def __init__(self, on_stop=None, grace_s: float | None = None):
+    def __init__(self, on_stop=None, grace_s: float | None = None,
+                 signals: tuple = (signal.SIGINT, signal.SIGTERM)):
         """on_stop: called (from the signal handler) when the first signal arrives, e.g. a
-        server's thread-safe `stop`; grace_s: then interrupt the main thread after this long."""
+        server's thread-safe `stop`; grace_s: then interrupt the main thread after this long;
+        signals: the ones to catch (the others keep their handlers)."""
+        self.signals = tuple(signals)
         self.signum: int | None = None
         self.on_stop = on_stop
         self.grace_s = grace_s
@@ -64,7 +67,7 @@ class StopRequest:
 
     def __enter__(self) -> StopRequest:
         if threading.current_thread() is threading.main_thread():
-            for s in (signal.SIGINT, signal.SIGTERM):
+            for s in self.signals:
                 self._previous[s] = signal.signal(s, self._handle)
         return self
 
