@@ -153,6 +153,7 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
     startup_s = 0.0
     ticks_done = 0
     ep = 0
+    closed = False      # the user closed the window
     with StopRequest() as stop:
         try:
             for ep in range(episodes):
@@ -198,10 +199,11 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
                             next_frame_s += frame_every_s
                     if window is not None:
                         window.render(core)
-                        if window.window_closed:
+                        closed = window.window_closed
+                        if closed:
                             break
                 bar.close()
-                if stop or (window is not None and window.window_closed):
+                if stop or closed:
                     break
                 wall = time.perf_counter() - start
                 log(_table(stats, (core.tick - sim0) * TICK_S, wall, plan.track, sorted(dones),
@@ -214,7 +216,7 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
         finally:
             notice.cancel()
             written = _finish(writer, view, window, env)
-    if stop or (window is not None and window.window_closed):
+    if stop or closed:
         why = f"interrupted by {stop.signal_name}" if stop else "window closed"
         files = f"wrote {video} ({written} frames, playable)" if written else "no video written"
         if video is None:

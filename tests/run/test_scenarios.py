@@ -93,3 +93,25 @@ def test_a_slow_start_says_that_kernels_are_compiling():
     timer.cancel()                       # the first step came in time: nothing said
     time.sleep(0.7)
     assert said == []
+
+
+def test_closing_the_window_ends_the_run_not_just_the_drawing(monkeypatch):
+    """Issue 14 item 5: the window's close button ends `madsim run --render` (status 0)."""
+    pygame = pytest.importorskip("pygame")
+    from madsim.render.envview import EnvView
+    from madsim.run import RunInterrupted
+
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    calls = [0]
+    draw = EnvView.render
+
+    def render(self, core):
+        calls[0] += 1
+        if self.render_mode == "human" and calls[0] == 10:
+            pygame.event.post(pygame.event.Event(pygame.QUIT))      # the user closes the window
+        return draw(self, core)
+
+    monkeypatch.setattr(EnvView, "render", render)
+    with pytest.raises(RunInterrupted, match="window closed") as stopped:
+        run(render=True, episodes=2, progress=False, log=lambda line: None)
+    assert stopped.value.status == 0 and calls[0] <= 11
