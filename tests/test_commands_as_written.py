@@ -7,14 +7,14 @@ What runs, and how (nothing is left out without a reason listed here):
   the `madsim` script calls; kernels compile once for all of them), background ones (`... &`)
   in threads, joined after their block; other lines through bash, `~` being the folder;
 - the ```python blocks of README.md and docs/rendering.md, each file's in order as one script
-  in a fresh process; docs/howto.md's run in tests/test_docs.py; the python fragments of
+  in this process; docs/howto.md's run in tests/test_docs.py; the python fragments of
   docs/training.md and docs/traffic.md continue earlier context (`obs`, a cluster) and are not run;
 - bounded budgets (the commands are otherwise exactly as written): `madsim serve` +
   `--max-ticks 300`, its ports moved from 3001.. to a free range (tests running side by side
   cannot meet; `--port` of drive/traffic moved alike); `madsim run` + `--max-steps 200`;
   `madsim train --steps N` -> `--steps 256 --n-steps 64 --eval-episodes 1`; `.learn(N)` ->
-  `.learn(512)`; `python examples/rllib_bottleneck.py` -> `--iterations 1` with a small batch,
-  in its own test (Ray starts in ~20 s);
+  `.learn(512)`; `python examples/rllib_bottleneck.py` runs as written up to train_rllib, whose
+  one-iteration run with Ray is tests/train/test_rllib.py's (Ray takes ~30 s to start);
 - not run, for the stated reason (asserted to be exactly these lines): the two set-up commands
   (`python3 -m venv ...`: CI's `.ci/run` runs them in a fresh environment), `pip install ...`
   (the tests reuse one install), `ray start ...` and `--address auto` (need a Ray cluster).
@@ -191,26 +191,39 @@ def test_every_readme_and_docs_command_runs_as_written(folder, monkeypatch):
 
 
 @pytest.mark.parametrize("doc", ["README.md", "docs/rendering.md"])
-def test_python_blocks_run_as_written(folder, doc):
-    """A document's python blocks, in order, as one script (later blocks use earlier names)."""
+def test_python_blocks_run_as_written(folder, doc, monkeypatch):
+    """A document's python blocks, in order, as one script (later blocks use earlier names), run
+    in this process (imports and compiled kernels shared with the commands above)."""
     blocks = re.findall(r"```python\n(.*?)```", (ROOT / doc).read_text(), re.S)
     assert len(blocks) >= 4
     code = "\n\n".join(re.sub(r"\.learn\(\d+\)", ".learn(512)", b) for b in blocks)
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=folder)
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    monkeypatch.chdir(folder)
+    with contextlib.redirect_stdout(io.StringIO()):
+        exec(compile(code, doc, "exec"), {"__name__": "__main__"})
 
 
-def test_the_rllib_example_runs_as_written(folder, tmp_path):
-    """docs/training.md's RLlib command with a budget of one small iteration."""
+def test_the_rllib_example_runs_as_written(folder, monkeypatch):
+    """docs/training.md's RLlib command, parsed and handed to train_rllib exactly as the script
+    does; the training itself (Ray, one iteration, two rollout workers) is
+    tests/train/test_rllib.py::test_one_training_iteration_with_two_rollout_workers, not run a
+    second time here (Ray takes ~30 s to start)."""
+    import runpy
+
     pytest.importorskip("ray")
+    import madsim.train.rllib as rllib
+
     line = next(c for _, c in _all_commands() if c.startswith(RLLIB_EXAMPLE) and not _not_run_reason(c))
-    argv = shlex.split(line)[1:]
-    argv[argv.index("--iterations") + 1] = "1"
-    argv[argv.index("--out") + 1] = str(tmp_path / "bottleneck")
-    argv += ["--train-batch-size", "200", "--minibatch-size", "100", "--num-epochs", "1"]
-    proc = subprocess.run([sys.executable] + argv, capture_output=True, text=True, timeout=300, cwd=folder)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert (tmp_path / "bottleneck" / "rllib.csv").is_file()
+    calls = []
+    monkeypatch.setattr(rllib, "train_rllib", lambda config, out, **kw: calls.append((config, out, kw)) or
+                        [{"env_steps": 0, "wall_s": 0.0}])
+    monkeypatch.chdir(folder)
+    monkeypatch.setattr(sys, "argv", shlex.split(line)[1:])
+    with contextlib.redirect_stdout(io.StringIO()), pytest.raises(SystemExit) as done:
+        runpy.run_path(str(folder / "examples" / "rllib_bottleneck.py"), run_name="__main__")
+    assert done.value.code == 0
+    (config, out, kw), = calls
+    assert Path(config).is_file() and out == "runs/bottleneck"
+    assert kw["iterations"] == 50 and kw["num_env_runners"] == 2
 
 
 def test_the_rllib_example_names_the_extra_when_ray_is_missing(folder):
