@@ -104,16 +104,15 @@ def cmd_convert_track(args) -> int:
     from madsim.tracks.compiled import save_compiled, track_to_xml
     from madsim.tracks.library import COMPILED_SUFFIX
 
-    track = load_track(args.input)
     out = Path(args.output)
-    if out.suffix in (COMPILED_SUFFIX, ".xml"):
-        output_path(args.output)
+    if out.suffix not in (COMPILED_SUFFIX, ".xml"):
+        raise CliError(f"output must end in {COMPILED_SUFFIX} (compiled) or .xml (TORCS XML), got '{out.name}'")
+    track = load_track(args.input)
+    output_path(args.output)
     if out.suffix == COMPILED_SUFFIX:
         save_compiled(track, out)
-    elif out.suffix == ".xml":
-        out.write_text(track_to_xml(track), encoding="utf-8")
     else:
-        raise CliError(f"output must end in {COMPILED_SUFFIX} (compiled) or .xml (TORCS XML), got '{out.name}'")
+        out.write_text(track_to_xml(track), encoding="utf-8")
     print(f"wrote {out} ({track.name}, {track.length:.2f} m, {track.n_pieces} pieces)")
     return 0
 
@@ -122,16 +121,12 @@ def cmd_convert_car(args) -> int:
     from madsim.cars import load_car
     from madsim.cars.catalog import car_to_json, car_to_xml
 
-    spec = load_car(args.input)
     out = Path(args.output)
-    if out.suffix in (".json", ".xml"):
-        output_path(args.output)
-    if out.suffix == ".json":
-        out.write_text(car_to_json(spec), encoding="utf-8")
-    elif out.suffix == ".xml":
-        out.write_text(car_to_xml(spec), encoding="utf-8")
-    else:
+    if out.suffix not in (".json", ".xml"):
         raise CliError(f"output must end in .json (compiled) or .xml (TORCS XML), got '{out.name}'")
+    spec = load_car(args.input)
+    output_path(args.output)
+    out.write_text(car_to_json(spec) if out.suffix == ".json" else car_to_xml(spec), encoding="utf-8")
     print(f"wrote {out} ({spec.name})")
     return 0
 
