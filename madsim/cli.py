@@ -315,13 +315,8 @@ def udp_port(text: str) -> int:
 
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from madsim import __version__
-
-    p = Parser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
-    p.add_argument("--version", action="version", version=f"madsim {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
-
+def add_run_parser(sub) -> None:
+    """`madsim run`."""
     r = sub.add_parser("run", help="drive a scenario (default: one lap of madsim-road with traffic)")
     r.add_argument("config", nargs="?", default=None, help="scenario YAML (default: the bundled run scenario)")
     r.add_argument("--episodes", type=positive_int, default=1)
@@ -342,6 +337,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_import_option(r)
     r.set_defaults(func=cmd_run)
 
+
+def add_tracks_parser(sub) -> None:
+    """`madsim tracks`."""
     tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
     tsub = tracks.add_subparsers(dest="tracks_command", required=True)
     t = tsub.add_parser("list", help="bundled and installed TORCS tracks")
@@ -364,6 +362,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("-o", "--output", required=True)
     t.set_defaults(func=cmd_tracks_generate)
 
+
+def add_cars_parser(sub) -> None:
+    """`madsim cars`."""
     cars = sub.add_parser("cars", help="list and inspect cars")
     csub = cars.add_subparsers(dest="cars_command", required=True)
     c = csub.add_parser("list", help="bundled and installed TORCS cars")
@@ -374,6 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true")
     c.set_defaults(func=cmd_cars_info)
 
+
+def add_config_parser(sub) -> None:
+    """`madsim config`."""
     cfg = sub.add_parser("config", help="check or show a scenario configuration (YAML)")
     gsub = cfg.add_subparsers(dest="config_command", required=True)
     g = gsub.add_parser("check", help="validate a config file (MADRaS files accepted)")
@@ -385,6 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_import_option(g)
     g.set_defaults(func=cmd_config_show)
 
+
+def add_serve_parser(sub) -> None:
+    """`madsim serve`."""
     sv = sub.add_parser("serve", help="a drop-in TORCS scr_server on UDP")
     sv.add_argument("--track", default="madsim-road")
     sv.add_argument("--cars", default="madsim-sedan", help="comma-separated car names, one per client")
@@ -408,6 +415,9 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--log-csv", default=None, help="write a per-tick trace to this CSV file")
     sv.set_defaults(func=cmd_serve)
 
+
+def add_drive_parser(sub) -> None:
+    """`madsim drive`."""
     dv = sub.add_parser("drive", help="drive one car of a scr_server with the built-in simple driver")
     dv.add_argument("--host", default="127.0.0.1")
     dv.add_argument("--port", type=udp_port, default=3001)
@@ -419,12 +429,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="seconds to look for the server (and to wait for it mid-race) before giving up")
     dv.set_defaults(func=cmd_drive)
 
-    from madsim.agents.traffic_client import add_traffic_parser
-    add_traffic_parser(sub)
 
-    from madsim.train.commands import add_parsers as add_train_parsers
-    add_train_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
-
+def add_convert_parser(sub) -> None:
+    """`madsim convert`."""
     conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
     vsub = conv.add_subparsers(dest="convert_command", required=True)
     v = vsub.add_parser("track", help="TORCS XML <-> compiled .mtrack")
@@ -436,8 +443,39 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("-o", "--output", required=True)
     v.set_defaults(func=cmd_convert_car)
 
+
+def _add_traffic_parser(sub) -> None:
+    from madsim.agents.traffic_client import add_traffic_parser
+
+    add_traffic_parser(sub)
+
+
+def _add_train_parser(sub) -> None:
+    from madsim.train.commands import add_parsers
+
+    add_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
+
+
+def _add_render_parsers(sub) -> None:
     from madsim.render.commands import add_render_commands
+
     add_render_commands(sub)
+
+
+# One function per subcommand (or family), called in this order by build_parser: a new
+# subcommand is one function here, or an `add_...(sub)` in its own module listed here.
+SUBCOMMANDS = (add_run_parser, add_tracks_parser, add_cars_parser, add_config_parser, add_serve_parser,
+               add_drive_parser, _add_traffic_parser, _add_train_parser, add_convert_parser, _add_render_parsers)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from madsim import __version__
+
+    p = Parser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
+    p.add_argument("--version", action="version", version=f"madsim {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    for add in SUBCOMMANDS:
+        add(sub)
     return p
 
 
