@@ -95,7 +95,22 @@ def test_run_render_in_a_window_stops_on_sigterm(tmp_path):
     assert "interrupted by SIGTERM" in err and "ended by" not in out
 
 
-def test_plugins_bring_the_users_reward_and_done(tmp_path, capsys):
+@pytest.fixture
+def registries_restored():
+    """The plugin's registrations must not leak into later tests (e.g. the generated docs)."""
+    from madsim.agents.dones import DONES
+    from madsim.agents.rewards import REWARDS
+
+    saved = [(d, dict(d)) for d in (REWARDS, DONES)]
+    yield
+    for registry, before in saved:
+        registry.clear()
+        registry.update(before)
+    for name in [m for m in sys.modules if m.startswith("madsim_plugin_")]:
+        del sys.modules[name]
+
+
+def test_plugins_bring_the_users_reward_and_done(tmp_path, capsys, registries_restored):
     """docs/howto.md's StayCentred and TooSlow, saved as my_rewards.py beside the scenario."""
     import re
 
