@@ -37,7 +37,11 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="runs/rllib_bottleneck")
     args = p.parse_args(argv)
 
-    from madsim.train.rllib import train_rllib
+    try:
+        from madsim.train.rllib import train_rllib
+    except ModuleNotFoundError as exc:   # one line, naming the extra to install
+        print(f"{p.prog}: error: {exc}", file=sys.stderr)
+        return 2
 
     rows = train_rllib(args.config, args.out, iterations=args.iterations, address=args.address,
                        policies=args.policies, num_env_runners=args.num_env_runners,

@@ -17,3 +17,15 @@ def make_vec(config=None, num_envs: int = 1, **kwargs):
     from madsim.envs.vector import make_vec as _make_vec
 
     return _make_vec(config, num_envs, **kwargs)
+
+
+def to_sb3(venv):
+    """A gymnasium VectorEnv (e.g. `make_vec(...)`) as a stable-baselines3 VecEnv, ready for
+    `PPO("MlpPolicy", to_sb3(make_vec(config, num_envs=8)))` (extra `train`); the adapter is
+    madsim.train.vec.GymnasiumToSB3 (list infos, `terminal_observation`, either autoreset mode)."""
+    try:
+        from madsim.train.vec import GymnasiumToSB3
+    except ModuleNotFoundError as exc:
+        raise ModuleNotFoundError(f"madsim.to_sb3 needs the train extra ({exc.name} missing): "
+                                  "pip install 'madsim[train]'", name=exc.name) from None
+    return GymnasiumToSB3(venv)

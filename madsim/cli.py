@@ -12,6 +12,16 @@ class CliError(Exception):
     """A user-facing failure: printed as one line, exit status 2."""
 
 
+def output_path(text: str) -> Path:
+    """An output file's path with its folder created (as `-o gen/gen.xml` promises)."""
+    path = Path(text)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CliError(f"cannot create the folder of {text}: {exc.strerror}") from None
+    return path
+
+
 # --- tracks -------------------------------------------------------------------------------
 
 
@@ -69,7 +79,7 @@ def cmd_tracks_show(args) -> int:
     from madsim.tracks import load_track
 
     track = load_track(args.track)
-    save_track_map(track, args.output, marks_every_m=args.marks)
+    save_track_map(track, output_path(args.output), marks_every_m=args.marks)
     print(f"wrote {args.output} ({track.name}, {track.length:.2f} m)")
     return 0
 
@@ -81,7 +91,7 @@ def cmd_tracks_generate(args) -> int:
         text = generate_track_xml(args.seed, length_m=args.length, width_m=args.width, name=args.name)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    Path(args.output).write_text(text, encoding="utf-8")
+    output_path(args.output).write_text(text, encoding="utf-8")
     print(f"wrote {args.output}")
     return 0
 
@@ -94,14 +104,15 @@ def cmd_convert_track(args) -> int:
     from madsim.tracks.compiled import save_compiled, track_to_xml
     from madsim.tracks.library import COMPILED_SUFFIX
 
-    track = load_track(args.input)
     out = Path(args.output)
+    if out.suffix not in (COMPILED_SUFFIX, ".xml"):
+        raise CliError(f"output must end in {COMPILED_SUFFIX} (compiled) or .xml (TORCS XML), got '{out.name}'")
+    track = load_track(args.input)
+    output_path(args.output)
     if out.suffix == COMPILED_SUFFIX:
         save_compiled(track, out)
-    elif out.suffix == ".xml":
-        out.write_text(track_to_xml(track), encoding="utf-8")
     else:
-        raise CliError(f"output must end in {COMPILED_SUFFIX} (compiled) or .xml (TORCS XML), got '{out.name}'")
+        out.write_text(track_to_xml(track), encoding="utf-8")
     print(f"wrote {out} ({track.name}, {track.length:.2f} m, {track.n_pieces} pieces)")
     return 0
 
@@ -110,14 +121,12 @@ def cmd_convert_car(args) -> int:
     from madsim.cars import load_car
     from madsim.cars.catalog import car_to_json, car_to_xml
 
-    spec = load_car(args.input)
     out = Path(args.output)
-    if out.suffix == ".json":
-        out.write_text(car_to_json(spec), encoding="utf-8")
-    elif out.suffix == ".xml":
-        out.write_text(car_to_xml(spec), encoding="utf-8")
-    else:
+    if out.suffix not in (".json", ".xml"):
         raise CliError(f"output must end in .json (compiled) or .xml (TORCS XML), got '{out.name}'")
+    spec = load_car(args.input)
+    output_path(args.output)
+    out.write_text(car_to_json(spec) if out.suffix == ".json" else car_to_xml(spec), encoding="utf-8")
     print(f"wrote {out} ({spec.name})")
     return 0
 
@@ -134,8 +143,11 @@ def cmd_cars_list(args) -> int:
         return 0
     print(f"{'name':16s} {'category':16s} {'drive':5s} {'mass (kg)':>9s} {'power (kW)':>10s}  source")
     for r in rows:
-        print(f"{r['name']:16s} {str(r.get('category', '')):16s} {str(r.get('drive', '')):5s} "
-              f"{r.get('mass', float('nan')):9.0f} {r.get('power_kw', float('nan')):10.0f}  {r.get('source', '')}")
+        if r.get("error"):
+            print(f"{r['name']:16s} {'?':16s} {'?':5s} {'error':>9s} {'':>10s}  {r['source']}: {r['error'].splitlines()[0]}")
+            continue
+        print(f"{r['name']:16s} {r['category'] or '-':16s} {r['drive_type']:5s} "
+              f"{r['mass_kg']:9.0f} {r['power_kw']:10.0f}  {r['source']}")
     return 0
 
 
@@ -155,10 +167,15 @@ def cmd_cars_info(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from madsim.run import run
+    from madsim.run import RunInterrupted, run
 
-    run(args.config, episodes=args.episodes, driver=args.driver, seed=args.seed, video=args.video,
-        plot=args.plot, render=args.render, progress=not args.quiet)
+    try:
+        run(args.config, episodes=args.episodes, driver=args.driver, seed=args.seed, video=args.video,
+            plot=args.plot, render=args.render, progress=not args.quiet, host=args.host, port=args.port,
+            max_steps=args.max_steps)
+    except RunInterrupted as exc:
+        print(f"madsim run: {exc}", file=sys.stderr, flush=True)
+        return exc.status
     return 0
 
 
@@ -223,6 +240,7 @@ def parse_grid(text: str | None) -> dict | None:
 def cmd_serve(args) -> int:
     import signal
 
+    from madsim.interrupts import StopRequest
     from madsim.net.server import ScrServer, ServerError
 
     cars = [c for c in args.cars.split(",") if c]
@@ -236,26 +254,43 @@ def cmd_serve(args) -> int:
                        seed=args.seed, laps=args.laps, max_ticks=args.max_ticks, countdown_ticks=args.countdown,
                        start_timeout_s=args.start_timeout, client_deadline_s=args.client_deadline,
                        log=lambda m: print(f"madsim serve: {m}", flush=True), log_csv=args.log_csv)
-    signal.signal(signal.SIGTERM, lambda *_: server.stop())
     try:
         server.open()
     except ServerError as exc:
         raise CliError(str(exc)) from None
     print(f"madsim serve: {args.track}, {args.clients} car(s), mode {args.mode}, "
           f"ports {args.port}..{args.port + args.clients - 1} on {args.host}", flush=True)
-    try:
-        server.serve()
-    except ServerError as exc:
-        raise CliError(str(exc)) from None
+    # SIGTERM stops the loop at the next wait; Ctrl-C stays the server's own KeyboardInterrupt
+    with StopRequest(on_stop=server.stop, signals=(signal.SIGTERM,)) as stop:
+        try:
+            server.serve()
+        except ServerError as exc:
+            raise CliError(str(exc)) from None
+    if stop:   # stopping is how a server ends (MADRaS kills it): say so, exit 0
+        print(f"madsim serve: stopped by {stop.signal_name}"
+              + (f"; trace in {args.log_csv}" if args.log_csv else ""), file=sys.stderr, flush=True)
     return 0
 
 
 def cmd_drive(args) -> int:
-    from madsim.net.client import ScrClient, simple_driver
+    import math
+
+    from madsim.net.client import ScrClient, ScrTimeout, simple_driver
 
     drivers = {"simple": simple_driver}
-    client = ScrClient(host=args.host, port=args.port, client_id=args.id)
-    outcome, steps = client.run(drivers[args.driver], max_steps=args.max_steps)
+    if not args.wait > 0:
+        raise CliError(f"--wait must be > 0 seconds, got {args.wait}")
+    client = ScrClient(host=args.host, port=args.port, client_id=args.id,
+                       identify_tries=max(1, math.ceil(args.wait)), silent_tries=max(1, math.ceil(args.wait)))
+    print(f"madsim drive: looking for an SCR server on {args.host}:{args.port} (up to {args.wait:g} s) ...",
+          flush=True)
+    try:
+        outcome, steps = client.run(drivers[args.driver], max_steps=args.max_steps)
+    except ScrTimeout:
+        raise CliError(f"no SCR server answered on {args.host}:{args.port} within {args.wait:g} s "
+                       "(start one with `madsim serve`, or a TORCS race with scr_server cars)") from None
+    finally:
+        client.close()
     print(f"madsim drive: {outcome} after {steps} steps")
     return 0
 
@@ -263,24 +298,70 @@ def cmd_drive(args) -> int:
 # --- parser -------------------------------------------------------------------------------
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from madsim import __version__
+class Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage block): `madsim run: error: ...`."""
 
-    p = argparse.ArgumentParser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
-    p.add_argument("--version", action="version", version=f"madsim {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+
+def _int(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    value = _int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a seed, an integer >= 0 (numpy's seeds are non-negative)."""
+    value = _int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a seed must be >= 0, got {value}")
+    return value
+
+
+def udp_port(text: str) -> int:
+    """argparse type: a UDP port, 1..65535."""
+    value = _int(text)
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a UDP port is 1..65535, got {value}")
+    return value
+
+
+
+def add_run_parser(sub) -> None:
+    """`madsim run`."""
     r = sub.add_parser("run", help="drive a scenario (default: one lap of madsim-road with traffic)")
     r.add_argument("config", nargs="?", default=None, help="scenario YAML (default: the bundled run scenario)")
-    r.add_argument("--episodes", type=int, default=1)
-    r.add_argument("--driver", default="pid", help="pid (built-in), random, or the path of a saved policy")
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--video", default=None, help="write the episode as out.mp4 or out.gif")
+    r.add_argument("--episodes", type=positive_int, default=1)
+    r.add_argument("--driver", default="pid",
+                   help="pid: the built-in driver fitting each agent's action space (T-S: lane and speed "
+                        "through the PID; S-A-B: steering and pedals); random; or a saved policy")
+    r.add_argument("--seed", type=seed_int, default=0)
+    r.add_argument("--video", default=None,
+                   help="write the episodes as out.mp4 (800x600, 25 frames/s) or out.gif (400x300, 5 frames/s: "
+                        "about 5 MB a lap)")
     r.add_argument("--plot", default=None, help="write trajectories and speed/trackPos plots (PNG)")
     r.add_argument("--render", action="store_true", help="open a window")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--max-steps", type=positive_int, default=None, help="end each episode after this many env steps")
+    r.add_argument("--port", type=udp_port, default=None,
+                   help="drive the cars of a running SCR server (madsim serve, TORCS) from this UDP port on")
+    r.add_argument("--host", default="127.0.0.1", help="the SCR server's host (with --port)")
+    add_import_option(r)
     r.set_defaults(func=cmd_run)
 
+
+def add_tracks_parser(sub) -> None:
+    """`madsim tracks`."""
     tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
     tsub = tracks.add_subparsers(dest="tracks_command", required=True)
     t = tsub.add_parser("list", help="bundled and installed TORCS tracks")
@@ -303,6 +384,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("-o", "--output", required=True)
     t.set_defaults(func=cmd_tracks_generate)
 
+
+def add_cars_parser(sub) -> None:
+    """`madsim cars`."""
     cars = sub.add_parser("cars", help="list and inspect cars")
     csub = cars.add_subparsers(dest="cars_command", required=True)
     c = csub.add_parser("list", help="bundled and installed TORCS cars")
@@ -313,21 +397,29 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true")
     c.set_defaults(func=cmd_cars_info)
 
+
+def add_config_parser(sub) -> None:
+    """`madsim config`."""
     cfg = sub.add_parser("config", help="check or show a scenario configuration (YAML)")
     gsub = cfg.add_subparsers(dest="config_command", required=True)
     g = gsub.add_parser("check", help="validate a config file (MADRaS files accepted)")
     g.add_argument("file")
+    add_import_option(g)
     g.set_defaults(func=cmd_config_check)
     g = gsub.add_parser("show", help="print the fully resolved config with defaults")
     g.add_argument("file")
+    add_import_option(g)
     g.set_defaults(func=cmd_config_show)
 
+
+def add_serve_parser(sub) -> None:
+    """`madsim serve`."""
     sv = sub.add_parser("serve", help="a drop-in TORCS scr_server on UDP")
     sv.add_argument("--track", default="madsim-road")
     sv.add_argument("--cars", default="madsim-sedan", help="comma-separated car names, one per client")
     sv.add_argument("--clients", type=int, default=1)
     sv.add_argument("--host", default="127.0.0.1")
-    sv.add_argument("--port", type=int, default=3001)
+    sv.add_argument("--port", type=udp_port, default=3001)
     sv.add_argument("--laps", type=int, default=None)
     sv.add_argument("--mode", choices=["sync", "timeout", "realtime"], default="sync")
     sv.add_argument("--timeout-ms", type=float, default=10.0)
@@ -350,21 +442,23 @@ def build_parser() -> argparse.ArgumentParser:
     sv.add_argument("--log-csv", default=None, help="write a per-tick trace to this CSV file")
     sv.set_defaults(func=cmd_serve)
 
+
+def add_drive_parser(sub) -> None:
+    """`madsim drive`."""
     dv = sub.add_parser("drive", help="drive one car of a scr_server with the built-in simple driver")
     dv.add_argument("--host", default="127.0.0.1")
-    dv.add_argument("--port", type=int, default=3001)
+    dv.add_argument("--port", type=udp_port, default=3001)
     dv.add_argument("--id", default="SCR")
     dv.add_argument("--driver", choices=["simple"], default="simple",
                     help="simple: steer to the track axis, slow for bends, shift by rpm")
     dv.add_argument("--max-steps", type=int, default=None)
+    dv.add_argument("--wait", type=float, default=30.0,
+                    help="seconds to look for the server (and to wait for it mid-race) before giving up")
     dv.set_defaults(func=cmd_drive)
 
-    from madsim.agents.traffic_client import add_traffic_parser
-    add_traffic_parser(sub)
 
-    from madsim.train.commands import add_parsers as add_train_parsers
-    add_train_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
-
+def add_convert_parser(sub) -> None:
+    """`madsim convert`."""
     conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
     vsub = conv.add_subparsers(dest="convert_command", required=True)
     v = vsub.add_parser("track", help="TORCS XML <-> compiled .mtrack")
@@ -376,15 +470,57 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("-o", "--output", required=True)
     v.set_defaults(func=cmd_convert_car)
 
+
+def _add_traffic_parser(sub) -> None:
+    from madsim.agents.traffic_client import add_traffic_parser
+
+    add_traffic_parser(sub)
+
+
+def _add_train_parser(sub) -> None:
+    from madsim.train.commands import add_parsers
+
+    add_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
+
+
+def _add_render_parsers(sub) -> None:
     from madsim.render.commands import add_render_commands
+
     add_render_commands(sub)
+
+
+# One function per subcommand (or family), called in this order by build_parser: a new
+# subcommand is one function here, or an `add_...(sub)` in its own module listed here.
+SUBCOMMANDS = (add_run_parser, add_tracks_parser, add_cars_parser, add_config_parser, add_serve_parser,
+               add_drive_parser, _add_traffic_parser, _add_train_parser, add_convert_parser, _add_render_parsers)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from madsim import __version__
+
+    p = Parser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
+    p.add_argument("--version", action="version", version=f"madsim {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    for add in SUBCOMMANDS:
+        add(sub)
     return p
+
+
+def add_import_option(parser) -> None:
+    """`--import MODULE_OR_FILE` (repeatable): the user's rewards, dones, behaviours."""
+    parser.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
+                        help="import this module or .py file first (registers your rewards, dones, "
+                             "traffic behaviours); repeatable; or list them under `plugins:` in the YAML")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if getattr(args, "imports", None):
+            from madsim.plugins import import_plugins
+
+            import_plugins(args.imports)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # e.g. `madsim tracks list | head`
         sys.stderr.close()

@@ -75,6 +75,11 @@ def config_reference() -> str:
            "learning car), `traffic` (a list) and optionally `curriculum`. Unknown keys are errors that "
            "name the nearest valid key; `madsim config show FILE` prints a file with every default "
            "filled in. MADRaS's own `madras_config.yml` and `sim_options_v2.yml` are read as they are.",
+           "",
+           "`plugins` (a list, optional) names your own modules (`my_project.rewards`) or Python files "
+           "(`my_rewards.py`, relative to the config file's folder) to import before the file is "
+           "checked, so the rewards, dones and traffic behaviours they register can be used in it "
+           "(`madsim run`, `train` and `config check` also take `--import MODULE`).",
            ""]
     sections = [("`server`", C.ServerConfig), ("`agents[i]`", C.AgentConfig),
                 ("`agents[i].action`", C.ActionConfig), ("`agents[i].pid` (also `traffic[j].pid`)", C.PidConfig),

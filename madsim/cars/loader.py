@@ -50,7 +50,7 @@ def torcs_data_roots() -> list[Path]:
 
 
 def _looks_like_path(text: str) -> bool:
-    return text.endswith(".xml") or "/" in text or os.sep in text or Path(text).is_file()
+    return text.endswith((".xml", ".json")) or "/" in text or os.sep in text or Path(text).is_file()
 
 
 def find_car(name_or_path: str | os.PathLike) -> Path:
@@ -100,8 +100,17 @@ def load_car(name_or_path: str | os.PathLike) -> CarSpec:
 
 
 def load_car_file(path: str | os.PathLike) -> CarSpec:
-    """Load one car XML file, merged over its category when it names one."""
+    """Load one car XML file, merged over its category when it names one, or a `madsim convert
+    car` JSON file (`.json`)."""
     path = Path(path)
+    if path.suffix.lower() == ".json":
+        from madsim.cars.convert import car_from_json
+
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise CarError(f"cannot read: {exc.strerror}", file=str(path)) from None
+        return car_from_json(text, source=str(path))
     car_tree = _read(path)
     car_sec = car_tree.sub("Car")
     category = (car_sec.str("category") if car_sec is not None else None) or ""

@@ -61,6 +61,7 @@ from madsim.agents.dones import DONES
 from madsim.agents.observations import FIELD_WIDTH, OBSERVATION_MODES, SCR_FIELDS, ObservationBuilder
 from madsim.agents.pid import MADRAS_ACCEL_GAINS, MADRAS_STEER_GAINS
 from madsim.agents.rewards import REWARD_ALIASES, REWARDS, make_reward, reward_params
+from madsim.plugins import PluginError, import_plugins, resolve_plugin
 
 __all__ = [
     "TRAFFIC_BEHAVIOURS",
@@ -140,7 +141,9 @@ def _unknown(what: str, name: str, candidates, key: str | None) -> ConfigError:
     hint = _nearest(name, candidates)
     if hint:
         return ConfigError(f"unknown {what} {name!r}", key=key, hint=hint)
-    return ConfigError(f"unknown {what} {name!r}; valid: {', '.join(map(str, candidates))}",
+    yours = (" (your own? list its module under `plugins:` or pass --import)"
+             if what in ("reward", "done", "traffic behaviour") else "")
+    return ConfigError(f"unknown {what} {name!r}{yours}; valid: {', '.join(map(str, candidates))}",
                        key=key)
 
 
@@ -171,6 +174,14 @@ def _pair(value, key: str, *, ordered: bool = True) -> tuple[float, float]:
     if ordered and out[0] > out[1]:
         _fail(key, "low must not exceed high", list(value))
     return out
+
+
+def _on_road(entry) -> None:
+    """initial_trackpos must place a car on the road: trackPos is -1..1 edge to edge."""
+    pos = entry.initial_trackpos
+    if pos is not None and (pos[0] < -1.0 or pos[1] > 1.0):
+        _fail("initial_trackpos", "must lie within [-1, 1] (trackPos: -1 right edge, +1 left edge, "
+              "0 centre line; beyond is off the road)", list(pos))
 
 
 def _number(value, key: str) -> float:
@@ -454,6 +465,7 @@ class AgentConfig:
         for name in ("initial_distance", "initial_trackpos"):
             if getattr(self, name) is not None:
                 _set(self, name, _pair(getattr(self, name), name))
+        _on_road(self)
         for i, name in enumerate(self.dones):
             if name not in DONES:
                 raise _unknown("done", name, DONES, f"dones[{i}]")
@@ -522,6 +534,7 @@ class TrafficConfig:
         for name in ("initial_distance", "initial_trackpos"):
             if getattr(self, name) is not None:
                 _set(self, name, _pair(getattr(self, name), name))
+        _on_road(self)
         defaults = TRAFFIC_PARAMS.get(self.behaviour)
         if defaults is None:                     # a behaviour only the traffic layer knows
             _set(self, "params", _frozen_map(self.params))
@@ -597,6 +610,7 @@ class ScenarioConfig:
     agents: tuple[AgentConfig, ...] = field(default_factory=lambda: (AgentConfig(),))
     traffic: tuple[TrafficConfig, ...] = ()
     curriculum: CurriculumConfig | None = None
+    plugins: tuple[str, ...] = ()
 
     def __post_init__(self):
         if not self.agents:
@@ -799,11 +813,12 @@ def _resolve_paths(cfg: ScenarioConfig, base: Path) -> ScenarioConfig:
                 dataclasses.replace(t, car=fix(t.car)) for t in s.traffic))
             for s in curriculum.stages)
         curriculum = dataclasses.replace(curriculum, stages=stages)
+    plugins = tuple(resolve_plugin(p, base) for p in cfg.plugins)
     return dataclasses.replace(cfg, server=server, agents=agents, traffic=traffic,
-                               curriculum=curriculum)
+                               curriculum=curriculum, plugins=plugins)
 
 
-_OURS = ("server", "agents", "traffic", "curriculum")
+_OURS = ("server", "agents", "traffic", "curriculum", "plugins")
 
 
 # --- public API ------------------------------------------------------------------------------
@@ -840,9 +855,14 @@ def load_config(source: str | os.PathLike | Mapping | None = None, *,
         path = Path(source)
         file = str(path)
         raw = _read_yaml(path)
+    if raw is None and file is not None:
+        raise ConfigError("the file is empty: a scenario needs at least one section (server, agents, "
+                          "traffic; see `madsim config show` of a shipped example), or give no file for "
+                          "the defaults", file=file)
     raw = {} if raw is None else raw
     if not isinstance(raw, Mapping):
         raise ConfigError("a scenario file must be a mapping of sections", value=raw, file=file)
+    _import_plugins(raw, file)
     comms_file = None
     try:
         from madsim.envs.madras_format import _MADRAS_HINTS, _looks_madras, _Madras
@@ -883,6 +903,20 @@ def load_config(source: str | os.PathLike | Mapping | None = None, *,
     if file is not None:
         cfg = _resolve_paths(cfg, Path(file).resolve().parent)
     return cfg
+
+
+def _import_plugins(raw: Mapping, file: str | None) -> None:
+    """Import the `plugins:` modules before validation, so the names they register are known."""
+    entries = raw.get("plugins") if "plugins" in raw else None
+    if entries is None:
+        return
+    if isinstance(entries, str) or not isinstance(entries, (list, tuple)):
+        raise ConfigError("expected a list of module names or .py paths", key="plugins", value=entries,
+                          file=file)
+    try:
+        import_plugins(entries, Path(file).resolve().parent if file else None)
+    except PluginError as exc:
+        raise ConfigError(str(exc), key="plugins", file=file) from None
 
 
 def _warn_madras(madras, file: str | None) -> None:

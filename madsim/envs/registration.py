@@ -12,6 +12,7 @@ default `config` argument (`gymnasium.make(id, config=...)` replaces it):
 | madsim/LapWithNoise-v0             | lap_with_noise.yml            | yes       | yes        |
 | madsim/TrafficOvertaking-v0        | traffic_overtaking.yml        | yes       | yes        |
 | madsim/MixedTraffic-v0             | mixed_traffic.yml             | yes       | yes        |
+| madsim/MixedTrafficCurriculum-v0   | mixed_traffic_curriculum.yml  | yes       | yes        |
 | madsim/BottleneckTwoLearners-v0    | bottleneck_two_learners.yml   | no (2 cars)| yes       |
 | madsim/RunDefault-v0               | run_default.yml (`madsim run`)| yes       | yes        |
 
@@ -36,6 +37,7 @@ CONFIGS: dict[str, tuple[str | None, bool]] = {
     "madsim/LapWithNoise-v0": ("lap_with_noise.yml", True),
     "madsim/TrafficOvertaking-v0": ("traffic_overtaking.yml", True),
     "madsim/MixedTraffic-v0": ("mixed_traffic.yml", True),
+    "madsim/MixedTrafficCurriculum-v0": ("mixed_traffic_curriculum.yml", True),
     "madsim/BottleneckTwoLearners-v0": ("bottleneck_two_learners.yml", False),
     "madsim/RunDefault-v0": ("run_default.yml", True),
 }

@@ -39,6 +39,7 @@ from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import FOCUS_NONE, SENSOR_OFFSETS, SensorSuite
 
 MODES = ("sync", "timeout", "realtime")
+STOP_POLL_S = 0.2   # longest wait for a client before a stop() request is looked at again
 COUNTDOWN_TICKS = 49          # TORCS polls robots ~49 times during the start countdown (§4.3)
 MAX_DAMAGE = 10000.0          # a car above this is out of the race (TORCS default)
 CSV_FIELDS = ("tick", "time", "car", "x", "y", "yaw", "distFromStart", "trackPos", "angle",
@@ -144,9 +145,10 @@ class ScrServer:
                 self.close()
                 raise ServerError(f"cannot bind UDP {self.host}:{port}: "
                                   f"{getattr(exc, 'strerror', None) or exc}") from None
-            # blocking reads wait at most client_deadline_s, enforced by the kernel (one
-            # recvfrom per answer, no select); every other read passes MSG_DONTWAIT
-            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(self.client_deadline_s))
+            # blocking reads are ended by the kernel (one recvfrom per answer, no select) after
+            # STOP_POLL_S at most, so a stop() is seen in time; every other read passes MSG_DONTWAIT
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO,
+                         _timeval(min(self.client_deadline_s, STOP_POLL_S)))
             self.cars.append(_Car(i, s, port, self._controls[i]))
 
     def close(self) -> None:
@@ -388,9 +390,9 @@ class ScrServer:
             pending = {c.sock: c for c in cars if c.index not in final}
             deadline = {c.index: tick_end if tick_end is not None else
                         start + (self.client_deadline_s if c.sync else self.timeout_s) for c in pending.values()}
-            while pending:
+            while pending and not self._stop:
                 wait = min(deadline[c.index] for c in pending.values()) - time.monotonic()
-                ready, _, _ = select.select(list(pending), [], [], max(0.0, wait))
+                ready, _, _ = select.select(list(pending), [], [], max(0.0, min(wait, STOP_POLL_S)))
                 for sock in ready:
                     c = pending[sock]
                     if (data := self._read_from_client(c)) is not None:
@@ -415,6 +417,8 @@ class ScrServer:
         got: dict[int, bytes] = {}
         for c in cars:
             data = self._wait_for_client(c)
+            if self._stop:
+                break
             if data is None:
                 self._to_timeout_behaviour(c)
             else:
@@ -428,22 +432,23 @@ class ScrServer:
                  f"per tick until it answers again")
 
     def _wait_for_client(self, c: _Car) -> bytes | None:
-        """c's client's next datagram, waiting up to `client_deadline_s` (None on silence);
+        """c's client's next datagram, waiting up to `client_deadline_s` (None on silence or a stop
+        request: the socket's receive timeout is at most STOP_POLL_S so stop() is seen in time);
         foreign datagrams are counted and dropped without extending the wait."""
-        end = None
-        while True:
+        end = time.monotonic() + self.client_deadline_s
+        while not self._stop:
             try:
                 data, addr = c.sock.recvfrom(65536)
-            except OSError:     # EAGAIN: the deadline passed (or the socket failed)
-                return None
+            except OSError:     # EAGAIN: one receive timeout (<= STOP_POLL_S) passed, or the socket failed
+                if time.monotonic() >= end:
+                    return None
+                continue
             if addr == c.addr:
                 return data
             self.stats.foreign_datagrams += 1
-            now = time.monotonic()
-            if end is None:
-                end = now + self.client_deadline_s
-            elif now >= end:
+            if time.monotonic() >= end:
                 return None
+        return None
 
     def _apply(self, cars: list[_Car], got: dict[int, bytes]) -> int | None:
         """Decode this tick's answers into each car's controls (silent cars keep theirs);

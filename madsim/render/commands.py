@@ -7,6 +7,7 @@ ValueError (the CLI prints it as one line), a missing optional dependency is rep
 from __future__ import annotations
 
 import argparse
+import sys
 
 from madsim.render.scene import CAMERAS
 
@@ -28,6 +29,7 @@ def _names(text: str | None) -> list[str] | None:
 def cmd_render(args) -> int:
     from tqdm import tqdm
 
+    from madsim.interrupts import StopRequest
     from madsim.render.topdown import Camera
     from madsim.render.video import render_trace
 
@@ -38,13 +40,18 @@ def cmd_render(args) -> int:
         bar.update(done - bar.n)
 
     try:
-        n = render_trace(args.trace, args.output, track=args.track, cars=_names(args.cars), car=args.car,
-                         camera=Camera(args.camera, ppm=args.zoom), size=args.size, fps=args.fps,
-                         every=args.every, progress=progress)
+        with StopRequest() as stop:
+            n = render_trace(args.trace, args.output, track=args.track, cars=_names(args.cars), car=args.car,
+                             camera=Camera(args.camera, ppm=args.zoom), size=args.size, fps=args.fps,
+                             every=args.every, progress=progress, stop=stop)
     except ModuleNotFoundError as exc:
         raise ValueError(str(exc)) from None
     finally:
         bar.close()
+    if stop:
+        print(f"madsim render: interrupted by {stop.signal_name}; wrote {n} frames -> {args.output} (playable)",
+              file=sys.stderr, flush=True)
+        return stop.exit_status
     print(f"madsim render: {n} frames -> {args.output}")
     return 0
 

@@ -74,6 +74,11 @@ class EnvView:
         self.renderer.show(fps)
         return None
 
+    @property
+    def window_closed(self) -> bool:
+        """True once the user closed the 'human' window."""
+        return self.renderer is not None and bool(getattr(self.renderer, "closed", False))
+
     def close(self) -> None:
         if self.renderer is not None:
             self.renderer.close()

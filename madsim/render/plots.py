@@ -55,10 +55,15 @@ def runs_from_trace(trace, track_length: float, cars=None, prefix: str = "") -> 
     return runs
 
 
+STILL_M = 5.0   # a run that covers less distance than this is drawn as a marker (a parked car)
+
+
 def plot_runs(track: Track, runs: list[Run], out_path: str | os.PathLike, *, title: str | None = None,
               dpi: int = 120) -> None:
-    """Write the figure: map with speed-coloured trajectories (left), speed and trackPos
-    against distance (right), one colour per run."""
+    """Write the figure: the map with the trajectories (left), speed and trackPos against
+    distance (right). One run: its trajectory is coloured by speed (with a colour bar); several:
+    each run has its own colour in all three panels, so whose speed is whose can be read on the
+    right. A run that barely moves (a parked car) is drawn as a square marker."""
     if not runs:
         raise ValueError("no runs to plot")
     plt = _figure()
@@ -66,33 +71,49 @@ def plot_runs(track: Track, runs: list[Run], out_path: str | os.PathLike, *, tit
     from matplotlib.colors import Normalize
 
     fig = plt.figure(figsize=(15, 7.5))
-    grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.15), hspace=0.28, wspace=0.18)
+    grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.15), hspace=0.28, wspace=0.22)
     ax_map = fig.add_subplot(grid[:, 0])
     ax_v = fig.add_subplot(grid[0, 1])
     ax_n = fig.add_subplot(grid[1, 1], sharex=ax_v)
     draw_track(ax_map, track, marks_every_m=500.0)
-    vmax = max([float(np.max(r.speed_kmh)) for r in runs if r.speed_kmh.size] + [1.0])
-    norm = Normalize(vmin=0.0, vmax=vmax)
     colours = plt.get_cmap("tab10").colors
+    by_speed = len(runs) == 1
+    xmin, xmax = ax_map.get_xlim()
     line = None
     for i, r in enumerate(runs):
-        if r.x.size < 2:
+        if r.x.size == 0:
             continue
-        pts = np.stack([r.x, r.y], axis=1)
-        segs = np.stack([pts[:-1], pts[1:]], axis=1)
-        line = LineCollection(segs, cmap=SPEED_CMAP, norm=norm, linewidths=2.2, zorder=6)
-        line.set_array((r.speed_kmh[:-1] + r.speed_kmh[1:]) / 2)
-        ax_map.add_collection(line)
         c = colours[i % len(colours)]
-        ax_map.plot(r.x[0], r.y[0], "o", ms=6, mfc=c, mec="black", zorder=7)
-        ax_map.annotate(r.label, (r.x[0], r.y[0]), xytext=(6, -12 - 11 * i), textcoords="offset points",
-                        fontsize=8, color=c, zorder=8,
+        still = r.dist_m.size < 2 or float(np.ptp(r.dist_m)) < STILL_M
+        if still:
+            ax_map.plot(r.x[0], r.y[0], "s", ms=7, mfc=c, mec="black", zorder=7)
+        elif by_speed:
+            pts = np.stack([r.x, r.y], axis=1)
+            segs = np.stack([pts[:-1], pts[1:]], axis=1)
+            norm = Normalize(vmin=0.0, vmax=max(float(np.max(r.speed_kmh)), 1.0))
+            line = LineCollection(segs, cmap=SPEED_CMAP, norm=norm, linewidths=2.2, zorder=6)
+            line.set_array((r.speed_kmh[:-1] + r.speed_kmh[1:]) / 2)
+            ax_map.add_collection(line)
+        else:
+            ax_map.plot(r.x, r.y, color=c, lw=1.6, alpha=0.9, zorder=6)
+        if not still:
+            ax_map.plot(r.x[0], r.y[0], "o", ms=6, mfc=c, mec="black", zorder=7)
+        # labels point into the map (away from the nearer side edge), clipped to the axes
+        inward = r.x[0] > (xmin + xmax) / 2
+        ax_map.annotate(r.label, (r.x[0], r.y[0]), xytext=(-8 if inward else 8, -12 - 11 * (i % 3)),
+                        textcoords="offset points", ha="right" if inward else "left", fontsize=8, color=c,
+                        zorder=8, annotation_clip=True,
                         bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": c, "alpha": 0.85})
-        ax_v.plot(r.dist_m, r.speed_kmh, color=c, lw=1.2, label=r.label)
-        ax_n.plot(r.dist_m, r.track_pos, color=c, lw=1.2, label=r.label)
+        style = {"color": c, "label": r.label}
+        if still:
+            ax_v.plot(r.dist_m[:1], r.speed_kmh[:1], "s", ms=6, mec="black", **style)
+            ax_n.plot(r.dist_m[:1], r.track_pos[:1], "s", ms=6, mec="black", **style)
+        else:
+            ax_v.plot(r.dist_m, r.speed_kmh, lw=1.2, **style)
+            ax_n.plot(r.dist_m, r.track_pos, lw=1.2, **style)
     if line is not None:
-        fig.colorbar(line, ax=ax_map, shrink=0.7, pad=0.02, label="speed (km/h)")
-    ax_map.set_title(title or f"{track.name}: {len(runs)} run(s)")
+        fig.colorbar(line, ax=ax_map, shrink=0.6, pad=0.08, location="bottom", label="speed (km/h)")
+    ax_map.set_title(title or f"{track.name}: {len(runs)} car{'s' if len(runs) != 1 else ''}")
     far = max([float(np.max(r.dist_m)) for r in runs if r.dist_m.size] + [0.0])
     for d in np.arange(0.0, far + 1.0, track.length):
         for ax in (ax_v, ax_n):

@@ -90,7 +90,7 @@ def lap_time_text(t: float) -> str:
 def hud_lines(hud: Hud) -> list[str]:
     """The HUD's text lines, top to bottom (what the renderer draws, exactly)."""
     lines = [hud.label] if hud.label else []
-    lines += [f"{hud.speed_kmh:.0f} km/h",
+    lines += [f"{int(round(hud.speed_kmh))} km/h",     # int: a parked car's -0.3 km/h shows as 0, not -0
               f"gear {gear_text(hud.gear)}  {hud.rpm:.0f} rpm",
               f"lap {'-' if hud.lap is None else hud.lap}  {lap_time_text(hud.lap_time_s)}",
               f"pos {hud.position}/{hud.n_cars}  t {hud.time_s:.1f} s"]

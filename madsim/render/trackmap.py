@@ -43,10 +43,12 @@ def draw_track(ax, track: Track, *, marks_every_m: float = 500.0, label: bool = 
     if marks_every_m > 0:
         for d in np.arange(marks_every_m, track.length - 0.1 * marks_every_m, marks_every_m):
             x, y, _, h = (float(v) for v in track.pose(d, 0.0))
-            off = track.width * 1.5
-            ax.plot([x], [y], marker="o", ms=2.5, color="#1f6feb", zorder=4)
-            ax.text(x - off * np.sin(h), y + off * np.cos(h), f"{d:.0f}", fontsize=7, ha="center",
-                    va="center", color="#1f4f9b", zorder=5)
+            off = track.width * 3.0
+            ax.plot([x], [y], marker="o", ms=2.5, color="#1f6feb", zorder=9)
+            # above anything drawn over the road (trajectories), on a white patch: always legible
+            ax.text(x - off * np.sin(h), y + off * np.cos(h), f"{d:.0f} m", fontsize=7, ha="center",
+                    va="center", color="#1f4f9b", zorder=9,
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

@@ -106,14 +106,15 @@ def write_video(frames, path: str | os.PathLike, fps: float = 50.0) -> int:
 def render_trace(csv_path: str | os.PathLike, out_path: str | os.PathLike, *,
                  track: str = "madsim-road", cars: list[str] | None = None, car: int = 0,
                  camera: Camera | str = "follow", size: tuple[int, int] = (800, 600),
-                 fps: float | None = None, every: int | None = None, progress=None) -> int:
+                 fps: float | None = None, every: int | None = None, progress=None, stop=None) -> int:
     """Replay a serve trace into a video; returns the number of frames.
 
     track: the track it was recorded on (the trace does not say; checked against trackPos);
     cars: car names per row for their body sizes (repeating the last; default madsim-sedan);
     car: the row the camera follows and the HUD shows; every: draw every k-th tick (default
     1 for videos, 50 / GIF_FPS for GIFs); fps: playback rate (default real time, 50 / every);
-    progress: a callable(done, total) or None.
+    progress: a callable(done, total) or None; stop: anything whose truth ends the replay
+    early (e.g. a `madsim.interrupts.StopRequest`): the frames so far make a playable file.
     """
     from madsim.cars import load_car
     from madsim.tracks import load_track
@@ -141,6 +142,8 @@ def render_trace(csv_path: str | os.PathLike, out_path: str | os.PathLike, *,
     steps = range(0, trace.n_ticks, every)
     with VideoWriter(out_path, fps) as writer:
         for done, t in enumerate(steps):
+            if stop:
+                break
             poses = CarPoses(trace["x"][t], trace["y"][t], trace["yaw"][t], length, width)
             hud = Hud(speed_kmh=float(trace["speedX"][t, car]), gear=int(trace["gear"][t, car]),
                       rpm=float(trace["rpm"][t, car]) / 10.0 * 60.0 / (2 * np.pi),

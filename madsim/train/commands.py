@@ -13,6 +13,7 @@ __all__ = ["add_parsers", "cmd_plot", "cmd_train", "main"]
 
 
 def cmd_train(args) -> int:
+    from madsim.interrupts import StopRequest, exit_now
     from madsim.train.evaluate import format_table
     from madsim.train.sb3 import TrainSettings, train
 
@@ -22,7 +23,13 @@ def cmd_train(args) -> int:
                              gamma=args.gamma, ent_coef=args.ent_coef,
                              progress=not args.no_progress,
                              native_vec={"auto": None, "native": True, "sync": False}[args.vec])
-    record = train(args.config, args.out, settings, overwrite=args.overwrite)
+    with StopRequest(grace_s=0.5) as stop:   # a step held up (e.g. compiling) is interrupted after 0.5 s
+        record = train(args.config, args.out, settings, overwrite=args.overwrite, stop=stop)
+    if stop:
+        print(f"madsim train: interrupted by {stop.signal_name} after {record['timesteps']} steps; "
+              f"saved {args.out}/policy.zip", file=sys.stderr, flush=True)
+        exit_now(stop.exit_status)      # every file is closed: skip torch's slow teardown
+        return stop.exit_status
     print(f"madsim train: {record['timesteps']} steps in {record['wall_s']} s "
           f"({record['steps_per_s']} steps/s); policy: {args.out}/policy.zip")
     print(format_table([record["final_eval"]]))
@@ -59,6 +66,9 @@ def add_parsers(sub, *, with_plot: bool = True) -> None:
                         "of MadrasEnv (sync), or native when installed (auto)")
     t.add_argument("--overwrite", action="store_true", help="reuse an --out folder holding a run")
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
+    t.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
+                   help="import this module or .py file first (registers your rewards, dones, "
+                        "traffic behaviours); repeatable; or list them under `plugins:` in the YAML")
     t.set_defaults(func=cmd_train)
 
     if not with_plot:
@@ -74,6 +84,10 @@ def main(argv: list[str] | None = None) -> int:
     add_parsers(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
     try:
+        if getattr(args, "imports", None):
+            from madsim.plugins import import_plugins
+
+            import_plugins(args.imports)
         return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:
         print(f"madsim: error: {exc}", file=sys.stderr)

@@ -30,7 +30,12 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import gymnasium
-from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+
+try:
+    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+except ModuleNotFoundError as _exc:
+    raise ModuleNotFoundError(f"madsim.train.rllib needs the rllib extra ({_exc.name} missing): "
+                              "pip install 'madsim[train,rllib]'", name=_exc.name) from None
 
 from madsim.envs.config import ScenarioConfig, config_to_dict, load_config
 

@@ -150,7 +150,11 @@ def load_policy(path) -> Policy:
 # --- callbacks ------------------------------------------------------------------------------
 
 
-def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float):
+class _Stopped(Exception):
+    """Raised inside an evaluation when a stop was requested (leaves it at once)."""
+
+
+def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float, stop):
     from stable_baselines3.common.callbacks import BaseCallback
     from tqdm import tqdm
 
@@ -179,8 +183,16 @@ def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float):
 
         def evaluate(self) -> None:
             policy = Policy(self.model)
-            summary, _ = evaluate_policy(policy, cfg, episodes=settings.eval_episodes,
-                                         env=self.eval_env)
+
+            def guarded(obs):
+                if stop:
+                    raise _Stopped
+                return policy(obs)
+            try:
+                summary, _ = evaluate_policy(guarded, cfg, episodes=settings.eval_episodes,
+                                             env=self.eval_env)
+            except _Stopped:   # interrupted: no row for a half-done evaluation
+                return
             row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.time() - t0, 2),
                    **{k: summary[k] for k in EVAL_FIELDS}}
             self.rows.append(row)
@@ -213,7 +225,7 @@ def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float):
             dones = self.locals.get("dones")
             if dones is not None:
                 self.episodes += int(np.sum(dones))
-            return True
+            return not stop
 
         def _on_rollout_start(self) -> None:
             # here the weights are those after the update on the previous rollout, so an
@@ -239,7 +251,7 @@ def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float):
                     self.curriculum_warned = True
 
         def _on_training_end(self) -> None:
-            if self.rows[-1]["timesteps"] != self.num_timesteps:
+            if not stop and self.rows[-1]["timesteps"] != self.num_timesteps:
                 self.evaluate()
             if self.bar is not None:
                 self.bar.close()
@@ -266,9 +278,12 @@ def _prepare_dir(out_dir, overwrite: bool) -> Path:
     return run_dir
 
 
-def train(config, out_dir, settings: TrainSettings, *, overwrite: bool = False) -> dict:
+def train(config, out_dir, settings: TrainSettings, *, overwrite: bool = False, stop=None) -> dict:
     """Train PPO on `config` (path, mapping or ScenarioConfig; one learning agent) and write
-    the run folder `out_dir` (see the module docstring). Returns the run record (run.json)."""
+    the run folder `out_dir` (see the module docstring). Returns the run record (run.json).
+    stop: anything whose truth ends training early (a `madsim.interrupts.StopRequest`): the
+    policy so far is saved and the record says `interrupted`."""
+    stop = False if stop is None else stop
     sb3, torch = _require_sb3()
     import yaml
     from stable_baselines3 import PPO
@@ -312,16 +327,24 @@ def train(config, out_dir, settings: TrainSettings, *, overwrite: bool = False) 
         "tensorboard": with_tb,
     }
     t0 = time.time()
-    periodic = _callbacks(run_dir, cfg, settings, t0)
+    periodic = _callbacks(run_dir, cfg, settings, t0, stop)
     try:
         model.learn(total_timesteps=settings.steps, callback=periodic)
+    except KeyboardInterrupt:
+        if not stop:     # a stop request's grace ran out (the step was held up): save what there is
+            raise
     finally:
+        if stop:
+            stop.settle()
         venv.close()
+        model.logger.close()          # progress.csv complete on disk, whatever comes next
     wall = time.time() - t0
     model.save(run_dir / "policy.zip")
     record.update(timesteps=int(model.num_timesteps), wall_s=round(wall, 1),
                   steps_per_s=round(model.num_timesteps / wall, 1),
-                  final_eval=periodic.rows[-1], evaluations=len(periodic.rows))
+                  final_eval=periodic.rows[-1] if periodic.rows else None, evaluations=len(periodic.rows))
+    if stop:
+        record["interrupted"] = getattr(stop, "signal_name", "stop")
     (run_dir / "run.json").write_text(json.dumps(record, indent=2), encoding="utf-8")
     return record
 

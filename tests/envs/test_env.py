@@ -305,7 +305,7 @@ def test_fixed_order_cycles_tracks_and_seeded_reset_restarts_the_cycle():
 
 
 def test_curriculum_stages_follow_the_episode_count_and_can_be_set():
-    env = MadrasEnv(CONFIGS / "mixed_traffic.yml", traffic_factory=Cruise)
+    env = MadrasEnv(CONFIGS / "mixed_traffic_curriculum.yml", traffic_factory=Cruise)
     _, info = env.reset(seed=0)
     assert info["stage"] == 0 and info["traffic_count"] == 0
     env.curriculum_progress = 1499

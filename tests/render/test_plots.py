@@ -21,18 +21,29 @@ def test_distance_unwraps_over_the_start_line():
     np.testing.assert_allclose(d, [-10.0, -5.0, 2.0, 10.0, 500.0, 999.0, 1005.0])
 
 
+def _has_colour(img, rgb01, tol=12) -> bool:
+    return bool(np.any(np.abs(img.astype(int) - np.array(rgb01[:3]) * 255).max(axis=2) < tol))
+
+
 def test_plot_traces_writes_a_picture_with_the_speed_colours(tmp_path, trace_file):
-    out = tmp_path / "runs.png"
-    assert plot_traces([trace_file], out, dpi=80) == 2
-    img = read_png(out)
-    assert img.shape[0] > 400 and img.shape[1] > 800
-    colours = np.unique(img.reshape(-1, 3), axis=0)
-    assert len(colours) > 200                       # a picture, not a blank page
-    # the fastest stretch is drawn in the top colour of the speed map (plasma: yellow)
+    """One car: its trajectory is coloured by speed (the fastest stretch in plasma's top
+    colour, yellow). Several cars: one colour per car in every panel, no shared speed map
+    (issue 14: whose speed is whose could not be told)."""
     import matplotlib
 
-    top = np.array(matplotlib.colormaps["plasma"](1.0)[:3]) * 255
-    assert np.any(np.abs(img.astype(int) - top).max(axis=2) < 12)
+    top = matplotlib.colormaps["plasma"](1.0)
+    out = tmp_path / "one.png"
+    assert plot_traces([trace_file], out, cars=[0], dpi=80) == 1
+    img = read_png(out)
+    assert img.shape[0] > 400 and img.shape[1] > 800
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 200    # a picture, not a blank page
+    assert _has_colour(img, top)
+    out = tmp_path / "two.png"
+    assert plot_traces([trace_file], out, dpi=80) == 2
+    img = read_png(out)
+    tab10 = matplotlib.colormaps["tab10"].colors
+    assert _has_colour(img, tab10[0]) and _has_colour(img, tab10[1])
+    assert not _has_colour(img, top, tol=6)
 
 
 def test_two_traces_overlay_with_their_labels(tmp_path, trace_file):
