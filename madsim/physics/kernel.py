@@ -496,18 +496,22 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
                 delta = math.copysign(0.5 * (abs(d) + math.atan(wb * ta / (wb + track_f * ta))), d)
             cd, sd = math.cos(delta), math.sin(delta)
 
-        # --- gearbox (spec 4.3): immediate change unless a shift is in progress
-        if gear_req != gear and shift_t <= 0.0:
-            gear = gear_req
-            if gear != 0.0:
-                shift_t = cp[i, C_SHIFT]
+        # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
+        # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
+        # requested gear is engaged (unless a shift is in progress). The step of the change
+        # itself is coupled, so the engine snaps to the wheels' speed (idle from rest).
         c = 1.0 - clutch
         throttle = accel
         if shift_t > 0.0:
-            if clutch <= 0.0:
+            shift_t -= dt
+            if shift_t > 0.0 and clutch < 0.01:
                 c = 0.0
                 throttle = min(throttle, 0.1)
-            shift_t -= dt
+        if gear_req != gear and shift_t <= 0.0:
+            gear = gear_req
+            shift_t = cp[i, C_SHIFT] if gear != 0.0 else 0.0
+            c = 1.0 - clutch
+            throttle = accel
         slot = int(gear) + 1
         ratio = cp[i, C_RATIO + slot]
         coupled = gear != 0.0 and c > 0.01
