@@ -471,15 +471,6 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     fuel = st[i, S_FUEL]
     fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
-    # ground-effect factor from the ride heights, lowered by the loads of the previous step
-    # (spring x bellcrank^2 wheel rate); evaluated once per call, ride heights change slowly
-    ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
-            + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
-            + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
-            + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
-    hm = 1.5 * ride
-    hm = hm * hm
-    hm = 2.0 * math.exp(-3.0 * hm * hm)
     d_done = math.nan
     delta = cd = 1.0
     sd = 0.0
@@ -543,6 +534,18 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         normal = m * G
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
+        # ground-effect factor from the ride heights, lowered by the loads of the previous
+        # sub-step (spring x bellcrank^2 wheel rate), every sub-step as TORCS does it (so one
+        # call of n sub-steps and n calls of one agree bit for bit)
+        hm = 0.0
+        if vx > 0.0:
+            ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
+                    + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
+                    + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
+                    + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
+            hm = 1.5 * ride
+            hm = hm * hm
+            hm = 2.0 * math.exp(-3.0 * hm * hm)
         body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)
         down_f = clift_f * body_down
         down_r = clift_r * body_down
