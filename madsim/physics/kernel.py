@@ -28,7 +28,7 @@ import numpy as np
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
-    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
+    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_LAT_F, C_LAT_R, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
     C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_REACT, C_RIDE0,
     C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_VISC,
     C_VISC_MAX, C_W0, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
@@ -460,8 +460,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
     wdown_f, wdown_r = cp[i, C_WINGDOWN_F], cp[i, C_WINGDOWN_R]
     y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]
-    tf_share = h / track_f * (b / wb)
-    tr_share = h / cp[i, C_TR] * (a / wb)
+    tf_share, tr_share = cp[i, C_LAT_F], cp[i, C_LAT_R]     # roll centres, roll stiffness
 
     # state into locals
     x, y, yaw, r = st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R]
@@ -472,15 +471,6 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     fuel = st[i, S_FUEL]
     fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
-    # ground-effect factor from the ride heights, lowered by the loads of the previous step
-    # (spring x bellcrank^2 wheel rate); evaluated once per call, ride heights change slowly
-    ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
-            + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
-            + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
-            + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
-    hm = 1.5 * ride
-    hm = hm * hm
-    hm = 2.0 * math.exp(-3.0 * hm * hm)
     d_done = math.nan
     delta = cd = 1.0
     sd = 0.0
@@ -496,18 +486,22 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
                 delta = math.copysign(0.5 * (abs(d) + math.atan(wb * ta / (wb + track_f * ta))), d)
             cd, sd = math.cos(delta), math.sin(delta)
 
-        # --- gearbox (spec 4.3): immediate change unless a shift is in progress
-        if gear_req != gear and shift_t <= 0.0:
-            gear = gear_req
-            if gear != 0.0:
-                shift_t = cp[i, C_SHIFT]
+        # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
+        # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
+        # requested gear is engaged (unless a shift is in progress). The step of the change
+        # itself is coupled, so the engine snaps to the wheels' speed (idle from rest).
         c = 1.0 - clutch
         throttle = accel
         if shift_t > 0.0:
-            if clutch <= 0.0:
+            shift_t -= dt
+            if shift_t > 0.0 and clutch < 0.01:
                 c = 0.0
                 throttle = min(throttle, 0.1)
-            shift_t -= dt
+        if gear_req != gear and shift_t <= 0.0:
+            gear = gear_req
+            shift_t = cp[i, C_SHIFT] if gear != 0.0 else 0.0
+            c = 1.0 - clutch
+            throttle = accel
         slot = int(gear) + 1
         ratio = cp[i, C_RATIO + slot]
         coupled = gear != 0.0 and c > 0.01
@@ -540,6 +534,18 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         normal = m * G
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
+        # ground-effect factor from the ride heights, lowered by the loads of the previous
+        # sub-step (spring x bellcrank^2 wheel rate), every sub-step as TORCS does it (so one
+        # call of n sub-steps and n calls of one agree bit for bit)
+        hm = 0.0
+        if vx > 0.0:
+            ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
+                    + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
+                    + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
+                    + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
+            hm = 1.5 * ride
+            hm = hm * hm
+            hm = 2.0 * math.exp(-3.0 * hm * hm)
         body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)
         down_f = clift_f * body_down
         down_r = clift_r * body_down

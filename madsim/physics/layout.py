@@ -74,7 +74,7 @@ CAR_COLUMNS = _enum(
     "viscous_max_share viscosity reaction_factor drag_coef "
     "steer_lock steer_speed brake_front brake_pmax "
     "scx2 clift_f clift_r wing_drag wing_down_f wing_down_r "
-    "half_length half_width reach"
+    "half_length half_width reach lat_share_f lat_share_r"
 )
 C = {name: i for i, name in enumerate(CAR_COLUMNS)}
 _n = len(CAR_COLUMNS)
@@ -103,7 +103,7 @@ N_CAR = C_IDRIVE_R + MAX_GEAR_SLOTS
  C_VISC_MAX, C_VISC, C_REACT, C_CD,
  C_LOCK, C_STEERSPD, C_BRAKE_FRONT, C_PMAX,
  C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
- C_HALF_LEN, C_HALF_WID, C_REACH) = range(_n)
+ C_HALF_LEN, C_HALF_WID, C_REACH, C_LAT_F, C_LAT_R) = range(_n)
 
 # --- per-piece track table (P, N_PIECE) float64, built by `trackparams.piece_table` -----------
 PIECE_COLUMNS = _enum(

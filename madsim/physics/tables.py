@@ -38,6 +38,24 @@ def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.nd
     return cp, curve_w, curve_t
 
 
+def lateral_transfer_shares(c: CarSpec) -> tuple[float, float]:
+    """(front, rear) right-wheel load gained per newton of m x lateral acceleration (m).
+
+    TORCS's roll (spec 4.8, table of 4.9's axle attributes): each tyre's lateral force acts on
+    the body through its axle's roll-centre height (not the CG height), and the springs and
+    anti-roll bars take the roll moment in proportion to each axle's roll stiffness
+    `t^2 (k_wheel / 2 + k_arb x bellcrank)`, t the axle's track. Quasi-static: the lateral forces
+    split between the axles as the static weight does."""
+    tracks = np.array([c.track_front, c.track_rear])
+    k_wheel = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
+    bell = np.array([c.susp_bellcrank[:2].mean(), c.susp_bellcrank[2:].mean()])
+    k_roll = tracks ** 2 * (np.array([k_wheel[:2].mean(), k_wheel[2:].mean()]) / 2.0
+                            + np.maximum(c.anti_roll_spring, 0.0) * bell)
+    arm = (c.b * c.roll_center_height[0] + c.a * c.roll_center_height[1]) / c.wheelbase
+    shares = arm * k_roll / float(np.sum(k_roll)) / np.maximum(tracks, 1e-6)
+    return float(shares[0]), float(shares[1])
+
+
 def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row = np.zeros(L.N_CAR)
     if c.top_gear + 2 > L.MAX_GEAR_SLOTS:
@@ -84,6 +102,7 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_WINGDOWN_R] = float(np.sum(down * (c.a - c.wing_x) / wl))
     row[L.C_HALF_LEN], row[L.C_HALF_WID] = c.body_length / 2.0, c.body_width / 2.0
     row[L.C_REACH] = float(np.max(np.hypot(c.wheel_pos[:, 0], c.wheel_pos[:, 1])))   # CG to farthest wheel
+    row[L.C_LAT_F], row[L.C_LAT_R] = lateral_transfer_shares(c)
     row[L.C_WY:L.C_WY + 4] = c.wheel_pos[:, 1]
     row[L.C_RAD:L.C_RAD + 4] = c.wheel_radius
     row[L.C_KMU:L.C_KMU + 4] = c.tire_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))

@@ -176,3 +176,23 @@ def test_shift_cuts_drive_torque_for_the_shift_time(straight, ph):
     for k in range(2, ticks - 1):
         assert -acc[k] == pytest.approx(coast_decel(car, 0.5 * (v[k] + v[k + 1])), rel=0.02)
     assert np.all(acc[ticks + 2:] > 1.0)       # drive is back after the shift time
+
+
+def test_engaging_a_gear_from_rest_drops_the_engine_to_the_wheels_then_free_revs(straight, ph):
+    # TORCS (spec 4.3, 4.10): the sub-step of a gear change is still coupled, so a racing engine
+    # snaps to the wheels' speed x ratio (clamped to [tickover, revs maxi]: idle from rest); only
+    # from the next sub-step does the shift open the clutch and cap the throttle at 0.1, and the
+    # engine free-revs from there. (Real TORCS: car1-stock1 launches at 942 -> 159.5 rad/s.)
+    car = ph.sedan()
+    w = ph.world_at(straight(rolling=ROLL), car, gear=0)
+    run(w, 50, np.array([[0.0, 1.0, 1.0, 0, 0.0]]))          # rev in neutral, held by the brakes
+    assert w.engine_speed[0] > 0.8 * car.revs_limiter
+    w.step(np.array([[0.0, 1.0, 0.0, 1, 0.0]]), substeps=1)
+    w_axle = float(w.state[0, L.S_WR] if car.drive_type == "RWD" else w.state[0, L.S_WF])
+    we = float(w.engine_speed[0])
+    assert we == pytest.approx(max(car.tickover, w_axle * car.overall_ratio(1)), rel=1e-12)
+    assert we < 1.5 * car.tickover
+    w.step(np.array([[0.0, 1.0, 0.0, 1, 0.0]]), substeps=1)  # shift in progress: free, throttle 0.1
+    k = car.engine_brake_coeff * (we - car.tickover) / (car.revs_maxi - car.tickover)
+    free = we + car.torque_at(we) * (0.1 * (1.0 + k) - k) / car.engine_inertia * 0.002
+    assert float(w.engine_speed[0]) == pytest.approx(free, rel=1e-9)

@@ -64,4 +64,31 @@ def test_first_minute_of_a_clean_lap_run(fidelity):
     # forza with car1-trb1 touches nothing: speed and line follow TORCS's closely
     _, r = replay(fidelity, "forza__car1-trb1__100", until_s=60.0)
     assert r["z_rms"] < 1.0                    # cm, measured 0.04
-    assert r["v_rms"] < 1.0 and r["pos_rms"] < 0.01     # measured 0.63 km/h (mostly the launch), 0.004 and r["dmg_madsim"] == 0
+    assert r["v_rms"] < 1.0 and r["pos_rms"] < 0.01     # measured 0.63 km/h (mostly the launch), 0.004
+    assert r["dmg_madsim"] == 0
+
+
+def test_launch_engages_the_gear_as_torcs_does(fidelity):
+    # The engine revs in neutral through the countdown; the first gear change snaps it to the
+    # wheels (idle), the shift then lets it free-rev at 0.1 throttle, and the controller's
+    # 2-1 hunt follows TORCS's tick for tick (issue 12: madsim kept the revs through the shift
+    # time, ran its gear request up to 6 and left forza at 8.7 km with car1-stock1).
+    run, _ = replay(fidelity, "forza__car1-stock1__100", until_s=0.84)
+    t, m = run.torcs, run.madsim
+    n = min(t["rpm"].shape[0], m["rpm"].shape[0])
+    assert n >= 40
+    np.testing.assert_array_equal(m["gear"][:n], t["gear"][:n])
+    # rpm to 0.01 % through the 2-1 hunt (32 ticks); later TORCS's per-wheel spins jitter it
+    np.testing.assert_allclose(m["rpm"][:32], t["rpm"][:32], rtol=1e-3)
+
+
+def test_car1_stock1_laps_forza_cleanly_like_torcs(fidelity):
+    # TORCS's car1-stock1 touches nothing on forza. madsim's left the road at 2.88 km (and
+    # before the gear-order fix at 8.7 km, lap 2 +37 %) until the lateral transfer went through
+    # the roll centres split by roll stiffness (its front anti-roll bar, none at the rear;
+    # issue 12). The 2.84-2.86 km kink is where TORCS slides out to trackPos 0.99.
+    _, r = replay(fidelity, "forza__car1-stock1__100")
+    assert r["end_madsim"] == "2 laps"
+    assert abs(r["lap2_err"]) < 0.22                     # %, measured -0.01
+    assert r["dmg_madsim"] == 0 and np.isnan(r["off_madsim"])
+    assert r["v_rms"] < 1.5 and r["pos_rms"] < 0.02     # measured 0.96 km/h, 0.006
