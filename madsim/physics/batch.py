@@ -46,7 +46,7 @@ from madsim.physics.sensors import (
     sensor_kernel,
 )
 from madsim.physics.tables import car_table, piece_table
-from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available
+from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, _whole_ticker, contact_available
 from madsim.tracks.track import Track
 
 __all__ = ["WorldBatch"]
@@ -62,6 +62,7 @@ def _kernels(broad_phase, parallel: bool):
     if key in _KERNELS:
         return _KERNELS[key]
     advance_car = kernel.advance_car
+    whole = _whole_ticker(False)      # the slots are the threads' unit, not the cars
     slipstream = kernel.slipstream
     t_length = L.T_LENGTH
     rng_ = numba.prange if parallel else range
@@ -70,9 +71,10 @@ def _kernels(broad_phase, parallel: bool):
 
     @numba.njit(parallel=parallel, error_model="numpy")
     def advance(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece,
-                bps, hits, nsub, dt, fuel_on, with_contact):
-        # per slot, World.step: sub-steps from kpos until the broad phase finds something
-        # near (near[e] != 0, kpos[e] = sub-steps done) or all nsub are done (near[e] = 0)
+                bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
+        # per slot, World.step: sub-steps from kpos (the rest at once where provably nothing
+        # is near) until the broad phase finds something near (near[e] != 0, kpos[e] =
+        # sub-steps done) or all nsub are done (near[e] = 0)
         for e in rng_(off.shape[0]):
             if not run[e]:
                 continue
@@ -93,11 +95,15 @@ def _kernels(broad_phase, parallel: bool):
             bp = bps[np.int64(e)]
             found = 0
             while k < nsub:
-                for i in range(a, b):
-                    advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, 1, dt, fuel_on)
+                if whole(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp, snap,
+                         path, turn):
+                    k = nsub
+                else:
+                    for i in range(a, b):
+                        advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, 1, dt, fuel_on)
+                    k += 1
                 for i in range(a, b):
                     piece[i] = int(st[i, s_piece])
-                k += 1
                 if b - a == 1 and _clear_of_walls(st[a, s_x], st[a, s_y], st[a, s_yaw], piece[a],
                                                   bp[0], bp[2], bp[3], bp[4], bp[8], bp[9]):
                     continue
@@ -207,6 +213,8 @@ class WorldBatch:
         self._curve_w = np.ones((c, 1))
         self._curve_t = np.zeros((c, 1))
         self._piece = np.zeros(c, dtype=np.int64)
+        self._snap = np.zeros_like(self.state)       # whole-tick scratch (world._whole_ticker)
+        self._path, self._turn = np.zeros(c), np.zeros(c)
         angles = np.asarray(angles_deg, dtype=np.float64)
         if angles.shape != (19,):
             raise ValueError(f"angles_deg must be 19 rangefinder angles, got shape {angles.shape}")
@@ -375,7 +383,7 @@ class WorldBatch:
             self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt,
                           self._surf, self._tsc, self._track, self.offsets, self.n_cars, run,
                           self._kpos, self._near, self._piece, self._bps, self.hits, SUBSTEPS,
-                          DT, self.fuel, self.contact)
+                          DT, self.fuel, self.contact, self._snap, self._path, self._turn)
             near = np.flatnonzero(run & (self._near != 0))
             if near.size == 0:
                 break

@@ -247,6 +247,46 @@ def _broad_phase(x, y, yaw, piece, geo, bar, cars, prm, wall_cache, vref, pairs,
     return near
 
 
+WHOLE_EPS_M = 1e-6          # rounding allowance of `tick_clear`'s bounds, m (and rad)
+
+
+@numba.njit(cache=True)
+def tick_clear(x, y, yaw, cars, prm, wall_cache, vref, pairs, meta, path, turn):
+    """True if `_broad_phase` (same arguments) can flag no car and change no cache while each
+    car i, from the pose (x, y, yaw)[i], moves along a path of at most path[i] m and turns by at
+    most turn[i] rad: every cached wall clearance outlasts the motion, no car leaves its
+    neighbour-list reference by REBUILD_M, and every listed pair stays farther apart than its
+    bounding circles. Then its calls at each point of that motion would only have set `flags`
+    to 0 and `slack`, which one call at the end sets as they would. False if unsure (a bad
+    pose or bound, a neighbour list to build)."""
+    n = x.shape[0]
+    move_cap = prm[P_MOVE_CAP]
+    for i in range(n):
+        if not (math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(yaw[i])
+                and path[i] >= 0.0 and turn[i] >= 0.0):     # NaN bounds fail here too
+            return False
+        moved = math.sqrt((x[i] - wall_cache[i, 0]) ** 2 + (y[i] - wall_cache[i, 1]) ** 2)
+        moved += path[i] + WHOLE_EPS_M
+        spun = abs(_wrap(yaw[i] - wall_cache[i, 2])) + turn[i] + WHOLE_EPS_M
+        if not (moved < move_cap and cars[i, C_GAIN] * moved + cars[i, C_RAD] * spun
+                < wall_cache[i, 3]):
+            return False
+    if n < 2:
+        return True
+    if meta[0] == 0:
+        return False
+    for i in range(n):
+        away = math.sqrt((x[i] - vref[i, 0]) ** 2 + (y[i] - vref[i, 1]) ** 2)
+        if not away + path[i] + WHOLE_EPS_M < REBUILD_M:
+            return False
+    for k in range(meta[1]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        gap = math.sqrt((x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2) - path[i] - path[j]
+        if not gap - WHOLE_EPS_M > cars[i, C_RAD] + cars[j, C_RAD] + CAR_REACH_M:
+            return False
+    return True
+
+
 @numba.njit(cache=True)
 def _membership(flags, member, idle, add, drop):
     """Which cars enter the pymunk space (flagged, not yet in) and which leave (idle for more

@@ -428,7 +428,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     """`nsub` explicit sub-steps of car i: the dynamic bicycle model of car spec 5.2 with TORCS's
     engine, gearbox, tyre and aero rules. Controls must be finite (any range: clipped here).
     Assumes small road grade/banking (gravity and load from the local road gradient) and no
-    contact (the contact solver runs between calls)."""
+    contact (the contact solver runs between calls). One call of n sub-steps is bit-identical
+    to n calls of one (nothing is evaluated once per call that a sub-step changes). Returns
+    (largest squared speed, m^2/s^2; largest |yaw rate|, rad/s) over the sub-steps' ends: bounds
+    of how far the car went (contact whole ticks check them with its end pose)."""
     steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
     accel = min(max(controls[i, U_ACCEL], 0.0), 1.0)
     brake = min(max(controls[i, U_BRAKE], 0.0), 1.0)
@@ -472,20 +475,23 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     fuel = st[i, S_FUEL]
     fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
-    # ground-effect factor from the ride heights, lowered by the loads of the previous step
-    # (spring x bellcrank^2 wheel rate); evaluated once per call, ride heights change slowly
-    ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
-            + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
-            + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
-            + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
-    hm = 1.5 * ride
-    hm = hm * hm
-    hm = 2.0 * math.exp(-3.0 * hm * hm)
     d_done = math.nan
     delta = cd = 1.0
     sd = 0.0
+    v2_max = r_max = 0.0
 
     for _ in range(nsub):
+        # ground-effect factor from the ride heights, lowered by the loads of the previous step
+        # (spring x bellcrank^2 wheel rate); per sub-step, so that one call of n sub-steps
+        # equals n calls of one (the whole-tick contact path relies on it)
+        ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
+                + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
+                + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
+                + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
+        hm = 1.5 * ride
+        hm = hm * hm
+        hm = 2.0 * math.exp(-3.0 * hm * hm)
+
         # --- steering: rate-limited towards steer * lock; one angle = mean Ackermann angle
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
@@ -654,6 +660,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
         ax_s = (fx_ng - rv * vx) / m
         ay_s = (fy_ng - rv * vy) / m
+        v2_max = max(v2_max, vxg * vxg + vyg * vyg)
+        r_max = max(r_max, abs(r))
         x += vxg * dt
         y += vyg * dt
         yaw = _wrap(yaw + r * dt)
@@ -671,3 +679,4 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_FUEL] = fuel
     st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3] = fz0, fz1, fz2, fz3
     st[i, S_Z] = st[i, S_ROADZ] + h + ride_at_cg(st, i, cp)
+    return v2_max, r_max

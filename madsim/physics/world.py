@@ -35,11 +35,72 @@ DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
 _STEPPERS: dict = {}
 
 
+PREDICT_ACCEL = 30.0
+"""m/s^2: the speed gain per tick a whole-tick attempt assumes (checked after the tick)."""
+PREDICT_YAW_ACCEL = 100.0
+"""rad/s^2: the yaw-rate gain per tick a whole-tick attempt assumes (checked after the tick)."""
+
+_WHOLE: dict = {}
+
+
+def _whole_ticker(parallel: bool = False):
+    """Compiled `whole(st, a, b, ..., nsub, dt, fuel_on, bp, snap, path, turn)`: advance cars
+    a..b-1 (rows of `st`) by `nsub` sub-steps in one `advance_car` call each when the contact
+    broad phase (arguments `bp` = `ContactSolver.broad_phase_args`) could flag none of them
+    at any of those sub-steps, and return True; else return False with the rows untouched.
+
+    The test is `contact_kernels.tick_clear` twice: before, with each car's path and turn
+    predicted from its speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that a
+    tick that will not pass is not computed; after, with the bounds the kernel returns (the
+    largest speed and yaw rate it reached), from the start poses. A failed check restores the
+    rows from `snap` (same shape as `st`). `advance_car` runs n sub-steps per call exactly as n
+    calls of one, so a whole tick is bit-identical to sub-steps with the broad phase between.
+    path, turn: (len(st),) scratch. Not cached on disk (it links the kernel module's code)."""
+    whole = _WHOLE.get(parallel)
+    if whole is not None:
+        return whole
+    from madsim.physics.contact_kernels import tick_clear
+    advance_car = kernel.advance_car
+    s_x, s_y, s_yaw, s_vxg, s_vyg, s_r = L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R
+    accel, yaw_accel, yaw_max = PREDICT_ACCEL, PREDICT_YAW_ACCEL, kernel.YAW_RATE_MAX
+
+    @numba.njit(error_model="numpy", parallel=parallel)
+    def whole(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp, snap,
+              path, turn):
+        span = nsub * dt
+        for i in range(a, b):
+            v = math.sqrt(st[i, s_vxg] ** 2 + st[i, s_vyg] ** 2)
+            path[i] = span * (v + accel * span)
+            turn[i] = span * min(abs(st[i, s_r]) + yaw_accel * span, yaw_max)
+        if not tick_clear(st[a:b, s_x], st[a:b, s_y], st[a:b, s_yaw], bp[2], bp[3], bp[4], bp[5],
+                          bp[6], bp[7], path[a:b], turn[a:b]):
+            return False
+        snap[a:b] = st[a:b]
+        for i in numba.prange(a, b):
+            v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt,
+                                        fuel_on)
+            path[i] = span * math.sqrt(v2_max)
+            turn[i] = span * r_max
+        ok = tick_clear(snap[a:b, s_x], snap[a:b, s_y], snap[a:b, s_yaw], bp[2], bp[3], bp[4],
+                        bp[5], bp[6], bp[7], path[a:b], turn[a:b])
+        for i in range(a, b):      # NaN speeds escape max(); they leave a NaN pose
+            ok = ok and math.isfinite(st[i, s_x]) and math.isfinite(st[i, s_y])
+        if ok:
+            return True
+        st[a:b] = snap[a:b]
+        return False
+
+    _WHOLE[parallel] = whole
+    return whole
+
+
 def _contact_stepper(broad_phase, parallel: bool = False):
     """Compiled sub-step loop that stops after the first sub-step at which the contact solver's
     broad phase finds a car near something (there, and only there, `resolve` has work to do).
-    `parallel`: the cars of each sub-step are shared among numba's threads (they are
-    independent within a sub-step, so results are bit-identical); the broad phase stays serial.
+    The sub-steps left go in one call per car when the broad phase provably has nothing to
+    find on the way (`_whole_ticker`), else one sub-step at a time with the broad phase after
+    each. `parallel`: the cars are shared among numba's threads (they are independent between
+    broad-phase calls, so results are bit-identical); the broad phase stays serial.
 
     Built per broad-phase function and not cached on disk: it links the contact module's
     compiled code, and numba's disk cache would not notice a change of that module.
@@ -48,19 +109,27 @@ def _contact_stepper(broad_phase, parallel: bool = False):
     stepper = _STEPPERS.get(key)
     if stepper is None:
         advance_car = kernel.advance_car
+        whole = _whole_ticker(parallel)
         s_piece = L.S_PIECE
 
         @numba.njit(error_model="numpy", parallel=parallel)
         def stepper(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
-                    x, y, yaw, piece, bp, near):
-            for k in range(k0, nsub):
-                for i in numba.prange(st.shape[0]):
-                    advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
-                for i in range(st.shape[0]):
+                    x, y, yaw, piece, bp, near, snap, path, turn):
+            k = k0
+            n = st.shape[0]
+            while k < nsub:
+                if whole(st, 0, n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt, fuel_on,
+                         bp, snap, path, turn):
+                    k = nsub
+                else:
+                    for i in numba.prange(n):
+                        advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
+                    k += 1
+                for i in range(n):
                     piece[i] = int(st[i, s_piece])
                 near[0] = broad_phase(x, y, yaw, piece, *bp)
                 if near[0] != 0:
-                    return k + 1
+                    return k
             return nsub
 
         _STEPPERS[key] = stepper
@@ -140,6 +209,8 @@ class World:
                                              cp[:, L.C_IZZ].copy(), **kw)
             self._piece_i = np.zeros(n, dtype=np.int64)
             self._near = np.zeros(1, dtype=np.int64)
+            self._snap = np.zeros_like(self.state)       # whole-tick scratch (_whole_ticker)
+            self._path, self._turn = np.zeros(n), np.zeros(n)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
             self._stepper = _contact_stepper(self._solver.broad_phase_kernel, parallel)
@@ -292,7 +363,7 @@ class World:
         while k < nsub:
             k = self._stepper(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
                               u, k, nsub, DT, self.fuel_on, cols[0], cols[1], cols[2], piece,
-                              solver.broad_phase_args, near)
+                              solver.broad_phase_args, near, self._snap, self._path, self._turn)
             if near[0] == 0:
                 break
             rep = solver.resolve(*cols, piece, DT)
