@@ -95,13 +95,8 @@ def _kernels(broad_phase, parallel: bool):
             bp = bps[np.int64(e)]
             found = 0
             while k < nsub:
-                if whole(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp, snap,
-                         path, turn):
-                    k = nsub
-                else:
-                    for i in range(a, b):
-                        advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, 1, dt, fuel_on)
-                    k += 1
+                k += whole(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp,
+                           snap, path, turn)
                 for i in range(a, b):
                     piece[i] = int(st[i, s_piece])
                 if b - a == 1 and _clear_of_walls(st[a, s_x], st[a, s_y], st[a, s_yaw], piece[a],

@@ -45,17 +45,20 @@ _WHOLE: dict = {}
 
 def _whole_ticker(parallel: bool = False):
     """Compiled `whole(st, a, b, ..., nsub, dt, fuel_on, bp, snap, path, turn)`: advance cars
-    a..b-1 (rows of `st`) by `nsub` sub-steps in one `advance_car` call each when the contact
-    broad phase (arguments `bp` = `ContactSolver.broad_phase_args`) could flag none of them
-    at any of those sub-steps, and return True; else return False with the rows untouched.
+    a..b-1 (rows of `st`) by m sub-steps in one `advance_car` call each and return m: the most
+    of nsub, nsub // 2, nsub // 4, ... sub-steps at which the contact broad phase (arguments
+    `bp` = `ContactSolver.broad_phase_args`) could flag none of them and change no cache (so
+    it need run after the last only), else 1 (the broad phase runs after each sub-step).
 
     The test is `contact_kernels.tick_clear` twice: before, with each car's path and turn
-    predicted from its speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that a
-    tick that will not pass is not computed; after, with the bounds the kernel returns (the
+    predicted from its speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that
+    sub-steps that will not pass are not computed; after, with the bounds the kernel returns (the
     largest speed and yaw rate it reached), from the start poses. A failed check restores the
-    rows from `snap` (same shape as `st`). `advance_car` runs n sub-steps per call exactly as n
+    rows from `snap` (same shape as `st`) and does one sub-step. `advance_car` runs n sub-steps per call exactly as n
     calls of one, so a whole tick is bit-identical to sub-steps with the broad phase between.
-    path, turn: (len(st),) scratch. Not cached on disk (it links the kernel module's code)."""
+    path, turn: (len(st),) scratch. Inlined into its callers, not cached on disk (it links
+    the kernel module's code: every compiled function that does re-optimises `advance_car`,
+    which costs about a second per process)."""
     whole = _WHOLE.get(parallel)
     if whole is not None:
         return whole
@@ -64,31 +67,44 @@ def _whole_ticker(parallel: bool = False):
     s_x, s_y, s_yaw, s_vxg, s_vyg, s_r = L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R
     accel, yaw_accel, yaw_max = PREDICT_ACCEL, PREDICT_YAW_ACCEL, kernel.YAW_RATE_MAX
 
-    @numba.njit(error_model="numpy", parallel=parallel)
+    @numba.njit(error_model="numpy", parallel=parallel, inline="always")
     def whole(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp, snap,
               path, turn):
-        span = nsub * dt
-        for i in range(a, b):
-            v = math.sqrt(st[i, s_vxg] ** 2 + st[i, s_vyg] ** 2)
-            path[i] = span * (v + accel * span)
-            turn[i] = span * min(abs(st[i, s_r]) + yaw_accel * span, yaw_max)
-        if not tick_clear(st[a:b, s_x], st[a:b, s_y], st[a:b, s_yaw], bp[2], bp[3], bp[4], bp[5],
-                          bp[6], bp[7], path[a:b], turn[a:b]):
-            return False
-        snap[a:b] = st[a:b]
-        for i in numba.prange(a, b):
-            v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt,
-                                        fuel_on)
-            path[i] = span * math.sqrt(v2_max)
-            turn[i] = span * r_max
-        ok = tick_clear(snap[a:b, s_x], snap[a:b, s_y], snap[a:b, s_yaw], bp[2], bp[3], bp[4],
-                        bp[5], bp[6], bp[7], path[a:b], turn[a:b])
-        for i in range(a, b):      # NaN speeds escape max(); they leave a NaN pose
-            ok = ok and math.isfinite(st[i, s_x]) and math.isfinite(st[i, s_y])
-        if ok:
-            return True
-        st[a:b] = snap[a:b]
-        return False
+        m = nsub
+        while m > 0:                 # the most sub-steps (nsub, halved) the prediction allows
+            span = m * dt
+            for i in range(a, b):
+                v = math.sqrt(st[i, s_vxg] ** 2 + st[i, s_vyg] ** 2)
+                path[i] = span * (v + accel * span)
+                turn[i] = span * min(abs(st[i, s_r]) + yaw_accel * span, yaw_max)
+            if tick_clear(st[a:b, s_x], st[a:b, s_y], st[a:b, s_yaw], bp[2], bp[3], bp[4],
+                          bp[5], bp[6], bp[7], path[a:b], turn[a:b]):
+                break
+            m //= 2
+        if m > 0:
+            for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
+                for i in range(a, b):
+                    snap[i, c] = st[i, c]
+        while True:                          # (one advance_car call site: each costs compile time)
+            steps = max(m, 1)
+            span = steps * dt
+            for i in numba.prange(a, b):
+                v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, steps,
+                                            dt, fuel_on)
+                path[i] = span * math.sqrt(v2_max)
+                turn[i] = span * r_max
+            if m == 0:
+                return 1
+            ok = tick_clear(snap[a:b, s_x], snap[a:b, s_y], snap[a:b, s_yaw], bp[2], bp[3],
+                            bp[4], bp[5], bp[6], bp[7], path[a:b], turn[a:b])
+            for i in range(a, b):      # NaN speeds escape max(); they leave a NaN pose
+                ok = ok and math.isfinite(st[i, s_x]) and math.isfinite(st[i, s_y])
+            if ok:
+                return m
+            for c in range(st.shape[1]):     # the bound failed: back, and one sub-step
+                for i in range(a, b):
+                    st[i, c] = snap[i, c]
+            m = 0
 
     _WHOLE[parallel] = whole
     return whole
@@ -108,7 +124,6 @@ def _contact_stepper(broad_phase, parallel: bool = False):
     key = (broad_phase, parallel)
     stepper = _STEPPERS.get(key)
     if stepper is None:
-        advance_car = kernel.advance_car
         whole = _whole_ticker(parallel)
         s_piece = L.S_PIECE
 
@@ -116,15 +131,10 @@ def _contact_stepper(broad_phase, parallel: bool = False):
         def stepper(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
                     x, y, yaw, piece, bp, near, snap, path, turn):
             k = k0
-            n = st.shape[0]
+            first, n = np.int64(0), st.shape[0]      # (not a literal: one `whole` signature)
             while k < nsub:
-                if whole(st, 0, n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt, fuel_on,
-                         bp, snap, path, turn):
-                    k = nsub
-                else:
-                    for i in numba.prange(n):
-                        advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
-                    k += 1
+                k += whole(st, first, n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt,
+                           fuel_on, bp, snap, path, turn)
                 for i in range(n):
                     piece[i] = int(st[i, s_piece])
                 near[0] = broad_phase(x, y, yaw, piece, *bp)
