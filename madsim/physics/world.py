@@ -365,8 +365,9 @@ class World:
 
     def _step_with_contact(self, u: np.ndarray, nsub: int) -> None:
         st, solver = self.state, self._solver
-        wall = np.zeros(self.n_cars, dtype=bool)
-        car = np.zeros(self.n_cars, dtype=bool)
+        wall, car = self.contact_wall, self.contact_car      # filled in place, no allocation
+        wall[:] = False
+        car[:] = False
         pairs: list[tuple[int, int]] = []
         cols, piece, near = self._contact_cols, self._piece_i, self._near
         k = 0
@@ -385,8 +386,6 @@ class World:
                 if self.damage_on:
                     st[:, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
                 kernel.refresh(st, self._cp, self._pt, self._surf, self._tsc, True)
-        self.contact_wall[:] = wall
-        self.contact_car[:] = car
         self.contact_pairs = pairs
 
     def _update_race_pos(self) -> None:
