@@ -8,8 +8,9 @@ each other (no contact, no opponents reading, separate race positions).
 
 `step(mask)` advances the masked slots by 0.02 s and computes their sensors, with results
 bit-identical to a `World` + `SensorSuite` per slot (as `madsim.envs.backends.LocalBackend`
-builds them): the same kernels (`kernel.advance_car` per sub-step, the contact solver's broad
-phase after each sub-step, `sensors.sensor_kernel`) run in one compiled call over all slots,
+builds them): the same kernels (`kernel.advance_car`, whole ticks where the contact broad
+phase provably finds nothing on the way and else the broad phase after each sub-step, as
+`world._whole_ticker`; `sensors.sensor_kernel`) run in one compiled call over all slots,
 and Python is entered only for a slot whose broad phase finds something near (its own
 `ContactSolver` then resolves, as in `World`).
 

@@ -11,6 +11,9 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
    overlap (separating axes) on a neighbour list rebuilt from a hashed grid when some car has
    moved `REBUILD_M`. Contacts act after penetration, so "near" means overlapping (cars) or
    within the bulge allowance + `WALL_REACH_M` (walls). Nothing near: pymunk is not touched.
+   `contact_kernels.tick_clear` bounds the broad phase over a stretch of motion (each car's
+   path length and turn): when it proves every call on the way would find nothing and change
+   no cache, World and WorldBatch advance the cars that stretch in one kernel call.
 2. Narrow phase (pymunk). Cars are box bodies of their size, barriers static segments built once
    from the track's barrier polylines (one static body per barrier material). Only cars near
    something are in the pymunk space (they leave after `IDLE_CALLS` consultations without);

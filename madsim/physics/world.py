@@ -54,8 +54,9 @@ def _whole_ticker(parallel: bool = False):
     predicted from its speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that
     sub-steps that will not pass are not computed; after, with the bounds the kernel returns (the
     largest speed and yaw rate it reached), from the start poses. A failed check restores the
-    rows from `snap` (same shape as `st`) and does one sub-step. `advance_car` runs n sub-steps per call exactly as n
-    calls of one, so a whole tick is bit-identical to sub-steps with the broad phase between.
+    rows from `snap` (same shape as `st`) and does one sub-step. `advance_car` runs n
+    sub-steps per call exactly as n calls of one, so a whole tick is bit-identical to
+    sub-steps with the broad phase between.
     path, turn: (len(st),) scratch. Inlined into its callers, not cached on disk (it links
     the kernel module's code: every compiled function that does re-optimises `advance_car`,
     which costs about a second per process)."""
