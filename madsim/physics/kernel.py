@@ -430,8 +430,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     Assumes small road grade/banking (gravity and load from the local road gradient) and no
     contact (the contact solver runs between calls). One call of n sub-steps is bit-identical
     to n calls of one (nothing is evaluated once per call that a sub-step changes). Returns
-    (largest squared speed, m^2/s^2; largest |yaw rate|, rad/s) over the sub-steps' ends: bounds
-    of how far the car went (contact whole ticks check them with its end pose)."""
+    (largest squared speed, m^2/s^2; largest |yaw rate|, rad/s) at the start and the sub-steps'
+    ends: bounds of how far the car went (contact whole ticks check them with its end pose)."""
     steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
     accel = min(max(controls[i, U_ACCEL], 0.0), 1.0)
     brake = min(max(controls[i, U_BRAKE], 0.0), 1.0)
@@ -478,7 +478,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     d_done = math.nan
     delta = cd = 1.0
     sd = 0.0
-    v2_max = r_max = 0.0
+    v2_max, r_max = vxg * vxg + vyg * vyg, abs(r)     # (start included: any integrator)
 
     for _ in range(nsub):
         # ground-effect factor from the ride heights, lowered by the loads of the previous step
