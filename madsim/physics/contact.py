@@ -178,6 +178,7 @@ class ContactSolver:
         self._meta = np.zeros(3, dtype=np.int64)     # list valid, n pairs, rebuild count
         self._flags = np.zeros(n, dtype=np.int8)
         self._slack = np.zeros(n)
+        self._bp_args = None
         self._travel = np.zeros(n)
 
         # --- pymunk ----------------------------------------------------------------------------
@@ -252,8 +253,11 @@ class ContactSolver:
     def broad_phase_args(self) -> tuple:
         """The arrays `broad_phase_kernel` takes after (x, y, yaw, piece); fetch them again
         after a resolve() call (it may replace the pair-list array)."""
-        return (self._geo, self._bar, self._cars, self._prm, self._wall_cache, self._vref,
-                self._pairs, self._meta, self._flags, self._slack)
+        args = self._bp_args          # (built once per pair-list array: read every tick)
+        if args is None or args[6] is not self._pairs:
+            args = self._bp_args = (self._geo, self._bar, self._cars, self._prm, self._wall_cache,
+                                    self._vref, self._pairs, self._meta, self._flags, self._slack)
+        return args
 
     def resolve(self, x, y, yaw, vx, vy, yaw_rate, piece, dt) -> ContactReport:
         """Find and resolve contacts after one sub-step. x, y, yaw, vx, vy (global frame),
