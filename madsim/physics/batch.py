@@ -8,8 +8,9 @@ each other (no contact, no opponents reading, separate race positions).
 
 `step(mask)` advances the masked slots by 0.02 s and computes their sensors, with results
 bit-identical to a `World` + `SensorSuite` per slot (as `madsim.envs.backends.LocalBackend`
-builds them): the same kernels (`kernel.advance_car` per sub-step, the contact solver's broad
-phase after each sub-step, `sensors.sensor_kernel`) run in one compiled call over all slots,
+builds them): the same kernels (`kernel.advance_car`, whole ticks where the contact broad
+phase provably finds nothing on the way and else the broad phase after each sub-step, as
+`contact_kernels.whole_tick`; `sensors.sensor_kernel`) run in one compiled call over all slots,
 and Python is entered only for a slot whose broad phase finds something near (its own
 `ContactSolver` then resolves, as in `World`).
 
@@ -33,7 +34,7 @@ from numba import typed
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
-from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP
+from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, whole_tick
 from madsim.physics.sensors import (
     N_VALUES,
     O_FOCUS,
@@ -62,6 +63,7 @@ def _kernels(broad_phase, parallel: bool):
     if key in _KERNELS:
         return _KERNELS[key]
     advance_car = kernel.advance_car
+    whole = whole_tick      # (its car prange runs serially here: the slots are the threads' unit)
     slipstream = kernel.slipstream
     t_length = L.T_LENGTH
     rng_ = numba.prange if parallel else range
@@ -70,9 +72,10 @@ def _kernels(broad_phase, parallel: bool):
 
     @numba.njit(parallel=parallel, error_model="numpy")
     def advance(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece,
-                bps, hits, nsub, dt, fuel_on, with_contact):
-        # per slot, World.step: sub-steps from kpos until the broad phase finds something
-        # near (near[e] != 0, kpos[e] = sub-steps done) or all nsub are done (near[e] = 0)
+                bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
+        # per slot, World.step: sub-steps from kpos (the rest at once where provably nothing
+        # is near) until the broad phase finds something near (near[e] != 0, kpos[e] =
+        # sub-steps done) or all nsub are done (near[e] = 0)
         for e in rng_(off.shape[0]):
             if not run[e]:
                 continue
@@ -93,11 +96,10 @@ def _kernels(broad_phase, parallel: bool):
             bp = bps[np.int64(e)]
             found = 0
             while k < nsub:
-                for i in range(a, b):
-                    advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, 1, dt, fuel_on)
+                k += whole(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp,
+                           snap, path, turn)
                 for i in range(a, b):
                     piece[i] = int(st[i, s_piece])
-                k += 1
                 if b - a == 1 and _clear_of_walls(st[a, s_x], st[a, s_y], st[a, s_yaw], piece[a],
                                                   bp[0], bp[2], bp[3], bp[4], bp[8], bp[9]):
                     continue
@@ -207,6 +209,8 @@ class WorldBatch:
         self._curve_w = np.ones((c, 1))
         self._curve_t = np.zeros((c, 1))
         self._piece = np.zeros(c, dtype=np.int64)
+        self._snap = np.zeros_like(self.state)       # whole-tick scratch (contact_kernels.whole_tick)
+        self._path, self._turn = np.zeros(c), np.zeros(c)
         angles = np.asarray(angles_deg, dtype=np.float64)
         if angles.shape != (19,):
             raise ValueError(f"angles_deg must be 19 rangefinder angles, got shape {angles.shape}")
@@ -375,7 +379,7 @@ class WorldBatch:
             self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt,
                           self._surf, self._tsc, self._track, self.offsets, self.n_cars, run,
                           self._kpos, self._near, self._piece, self._bps, self.hits, SUBSTEPS,
-                          DT, self.fuel, self.contact)
+                          DT, self.fuel, self.contact, self._snap, self._path, self._turn)
             near = np.flatnonzero(run & (self._near != 0))
             if near.size == 0:
                 break

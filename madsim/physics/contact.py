@@ -11,6 +11,9 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
    overlap (separating axes) on a neighbour list rebuilt from a hashed grid when some car has
    moved `REBUILD_M`. Contacts act after penetration, so "near" means overlapping (cars) or
    within the bulge allowance + `WALL_REACH_M` (walls). Nothing near: pymunk is not touched.
+   `contact_kernels.tick_clear` bounds the broad phase over a stretch of motion (each car's
+   path length and turn): when it proves every call on the way would find nothing and change
+   no cache, World and WorldBatch advance the cars that stretch in one kernel call.
 2. Narrow phase (pymunk). Cars are box bodies of their size, barriers static segments built once
    from the track's barrier polylines (one static body per barrier material). Only cars near
    something are in the pymunk space (they leave after `IDLE_CALLS` consultations without);
@@ -177,6 +180,7 @@ class ContactSolver:
         self._meta = np.zeros(3, dtype=np.int64)     # list valid, n pairs, rebuild count
         self._flags = np.zeros(n, dtype=np.int8)
         self._slack = np.zeros(n)
+        self._bp_args = None
         self._travel = np.zeros(n)
 
         # --- pymunk ----------------------------------------------------------------------------
@@ -251,8 +255,11 @@ class ContactSolver:
     def broad_phase_args(self) -> tuple:
         """The arrays `broad_phase_kernel` takes after (x, y, yaw, piece); fetch them again
         after a resolve() call (it may replace the pair-list array)."""
-        return (self._geo, self._bar, self._cars, self._prm, self._wall_cache, self._vref,
-                self._pairs, self._meta, self._flags, self._slack)
+        args = self._bp_args          # (built once per pair-list array: read every tick)
+        if args is None or args[6] is not self._pairs:
+            args = self._bp_args = (self._geo, self._bar, self._cars, self._prm, self._wall_cache,
+                                    self._vref, self._pairs, self._meta, self._flags, self._slack)
+        return args
 
     def resolve(self, x, y, yaw, vx, vy, yaw_rate, piece, dt) -> ContactReport:
         """Find and resolve contacts after one sub-step. x, y, yaw, vx, vy (global frame),

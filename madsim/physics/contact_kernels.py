@@ -13,8 +13,8 @@ import math
 import numba
 import numpy as np
 
-from madsim.physics.kernel import advance_car
-from madsim.physics.layout import S_PIECE
+from madsim.physics.kernel import YAW_RATE_MAX, advance_car
+from madsim.physics.layout import S_PIECE, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
 from madsim.tracks.kernels import GEO_A0, GEO_KIND, GEO_LEN, GEO_R, GEO_S0, locate_from
 
 # --- TORCS response constants (spec torcs-car-format.md 4.12) ---------------------------------
@@ -247,6 +247,46 @@ def _broad_phase(x, y, yaw, piece, geo, bar, cars, prm, wall_cache, vref, pairs,
                     near += 1
                 flags[m] |= 2
     return near
+
+
+WHOLE_EPS_M = 1e-6          # rounding allowance of `tick_clear`'s bounds, m (and rad)
+
+
+@numba.njit(cache=True)
+def tick_clear(x, y, yaw, cars, prm, wall_cache, vref, pairs, meta, path, turn):
+    """True if `_broad_phase` (same arguments) can flag no car and change no cache while each
+    car i, from the pose (x, y, yaw)[i], moves along a path of at most path[i] m and turns by at
+    most turn[i] rad: every cached wall clearance outlasts the motion, no car leaves its
+    neighbour-list reference by REBUILD_M, and every listed pair stays farther apart than its
+    bounding circles. Then its calls at each point of that motion would only have set `flags`
+    to 0 and `slack`, which one call at the end sets as they would. False if unsure (a bad
+    pose or bound, a neighbour list to build)."""
+    n = x.shape[0]
+    move_cap = prm[P_MOVE_CAP]
+    for i in range(n):
+        if not (math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(yaw[i])
+                and path[i] >= 0.0 and turn[i] >= 0.0):     # NaN bounds fail here too
+            return False
+        moved = math.sqrt((x[i] - wall_cache[i, 0]) ** 2 + (y[i] - wall_cache[i, 1]) ** 2)
+        moved += path[i] + WHOLE_EPS_M
+        spun = abs(_wrap(yaw[i] - wall_cache[i, 2])) + turn[i] + WHOLE_EPS_M
+        if not (moved < move_cap and cars[i, C_GAIN] * moved + cars[i, C_RAD] * spun
+                < wall_cache[i, 3]):
+            return False
+    if n < 2:
+        return True
+    if meta[0] == 0:
+        return False
+    for i in range(n):
+        away = math.sqrt((x[i] - vref[i, 0]) ** 2 + (y[i] - vref[i, 1]) ** 2)
+        if not away + path[i] + WHOLE_EPS_M < REBUILD_M:
+            return False
+    for k in range(meta[1]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        gap = math.sqrt((x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2) - path[i] - path[j]
+        if not gap - WHOLE_EPS_M > cars[i, C_RAD] + cars[j, C_RAD] + CAR_REACH_M:
+            return False
+    return True
 
 
 @numba.njit(cache=True)
@@ -607,30 +647,95 @@ def _settle(x, y, yaw, piece, cars, geo, bar, prm, pairs, meta, flags, slack, wa
 # compiled anew in every process: a ~1 s stall on a server's first tick).
 
 
+PREDICT_ACCEL = 30.0
+"""m/s^2: the speed gain per tick a whole-tick attempt assumes (checked after the tick)."""
+PREDICT_YAW_ACCEL = 100.0
+"""rad/s^2: the yaw-rate gain per tick a whole-tick attempt assumes (checked after the tick)."""
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp, snap,
+               path, turn):
+    """Advance cars a..b-1 (rows of `st`) by m sub-steps in one `advance_car` call each and
+    return m: the most of nsub, nsub // 2, nsub // 4, ... sub-steps at which the broad phase
+    (arguments `bp` = `ContactSolver.broad_phase_args`) could flag none of them and change no
+    cache (so it need run after the last only), else 1 (the broad phase runs after each).
+
+    The test is `tick_clear` twice: before, with each car's path and turn predicted from its
+    speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that sub-steps that will not
+    pass are not computed; after, with the bounds the kernel returns (the largest speed and
+    yaw rate it reached), from the start poses. A failed check restores the rows from `snap`
+    (same shape as `st`) and does one sub-step. `advance_car` runs n sub-steps per call exactly
+    as n calls of one, so a whole tick is bit-identical to sub-steps with the broad phase
+    between. path, turn: (len(st),) scratch. The car loop is a prange: parallel in a parallel
+    caller (it is inlined), serial elsewhere."""
+    m = nsub
+    while m > 0:                 # the most sub-steps (nsub, halved) the prediction allows
+        span = m * dt
+        for i in range(a, b):
+            v = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
+            path[i] = span * (v + PREDICT_ACCEL * span)
+            turn[i] = span * min(abs(st[i, S_R]) + PREDICT_YAW_ACCEL * span, YAW_RATE_MAX)
+        if tick_clear(st[a:b, S_X], st[a:b, S_Y], st[a:b, S_YAW], bp[2], bp[3], bp[4],
+                      bp[5], bp[6], bp[7], path[a:b], turn[a:b]):
+            break
+        m //= 2
+    if m > 0:
+        for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
+            for i in range(a, b):
+                snap[i, c] = st[i, c]
+    while True:                          # (one advance_car call site: each costs compile time)
+        steps = max(m, 1)
+        span = steps * dt
+        for i in numba.prange(a, b):
+            v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, steps,
+                                        dt, fuel_on)
+            path[i] = span * math.sqrt(v2_max)
+            turn[i] = span * r_max
+        if m == 0:
+            return 1
+        ok = tick_clear(snap[a:b, S_X], snap[a:b, S_Y], snap[a:b, S_YAW], bp[2], bp[3],
+                        bp[4], bp[5], bp[6], bp[7], path[a:b], turn[a:b])
+        for i in range(a, b):      # NaN speeds escape max(); they leave a NaN pose
+            ok = ok and math.isfinite(st[i, S_X]) and math.isfinite(st[i, S_Y])
+        if ok:
+            return m
+        for c in range(st.shape[1]):     # the bound failed: back, and one sub-step
+            for i in range(a, b):
+                st[i, c] = snap[i, c]
+        m = 0
+
+
 @numba.njit(cache=True, error_model="numpy")
 def advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
-                       x, y, yaw, piece, bp, near):
-    """Sub-steps k0.. of `kernel.advance_car` for all cars (state `st` (N, N_STATE)); after
-    each, `piece` (N,) is refreshed and `near[0]` = the broad phase's answer on the arrays
-    `bp` (ContactSolver.broad_phase_args). Returns the sub-steps done (nsub if nothing near)."""
-    for k in range(k0, nsub):
-        for i in range(st.shape[0]):
-            advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
+                       x, y, yaw, piece, bp, near, snap, path, turn):
+    """Sub-steps k0.. of `kernel.advance_car` for all cars (state `st` (N, N_STATE)), whole
+    ticks (or the most sub-steps) at once where `whole_tick` proves nothing can be near; after
+    each call `piece` (N,) is refreshed and `near[0]` = the broad phase's answer on the arrays
+    `bp` (ContactSolver.broad_phase_args). Returns the sub-steps done (nsub if nothing near).
+    snap, path, turn: `whole_tick`'s scratch."""
+    k = k0
+    n = np.int64(st.shape[0])
+    while k < nsub:
+        k += whole_tick(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt,
+                        fuel_on, bp, snap, path, turn)
         if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
-            return k + 1
+            return k
     return nsub
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
 def advance_until_near_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
-                                x, y, yaw, piece, bp, near):
-    """`advance_until_near` with each sub-step's cars shared among threads (they are
-    independent within a sub-step: bit-identical); the broad phase stays serial."""
-    for k in range(k0, nsub):
-        for i in numba.prange(st.shape[0]):
-            advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on)
+                                x, y, yaw, piece, bp, near, snap, path, turn):
+    """`advance_until_near` with the cars shared among threads (they are independent between
+    broad-phase calls: bit-identical); the broad phase stays serial."""
+    k = k0
+    n = np.int64(st.shape[0])
+    while k < nsub:
+        k += whole_tick(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt,
+                        fuel_on, bp, snap, path, turn)
         if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
-            return k + 1
+            return k
     return nsub
 
 

@@ -428,7 +428,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     """`nsub` explicit sub-steps of car i: the dynamic bicycle model of car spec 5.2 with TORCS's
     engine, gearbox, tyre and aero rules. Controls must be finite (any range: clipped here).
     Assumes small road grade/banking (gravity and load from the local road gradient) and no
-    contact (the contact solver runs between calls)."""
+    contact (the contact solver runs between calls). One call of n sub-steps is bit-identical
+    to n calls of one (nothing is evaluated once per call that a sub-step changes). Returns
+    (largest squared speed, m^2/s^2; largest |yaw rate|, rad/s) at the start and the sub-steps'
+    ends: bounds of how far the car went (contact whole ticks check them with its end pose)."""
     steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
     accel = min(max(controls[i, U_ACCEL], 0.0), 1.0)
     brake = min(max(controls[i, U_BRAKE], 0.0), 1.0)
@@ -474,6 +477,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     d_done = math.nan
     delta = cd = 1.0
     sd = 0.0
+    v2_max, r_max = vxg * vxg + vyg * vyg, abs(r)     # (start included: any integrator)
 
     for _ in range(nsub):
         # --- steering: rate-limited towards steer * lock; one angle = mean Ackermann angle
@@ -660,6 +664,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
         ax_s = (fx_ng - rv * vx) / m
         ay_s = (fy_ng - rv * vy) / m
+        v2_max = max(v2_max, vxg * vxg + vyg * vyg)
+        r_max = max(r_max, abs(r))
         x += vxg * dt
         y += vyg * dt
         yaw = _wrap(yaw + r * dt)
@@ -677,3 +683,4 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_FUEL] = fuel
     st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3] = fz0, fz1, fz2, fz3
     st[i, S_Z] = st[i, S_ROADZ] + h + ride_at_cg(st, i, cp)
+    return v2_max, r_max

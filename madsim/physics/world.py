@@ -105,6 +105,8 @@ class World:
                                              cp[:, L.C_IZZ].copy(), **kw)
             self._piece_i = np.zeros(n, dtype=np.int64)
             self._near = np.zeros(1, dtype=np.int64)
+            self._snap = np.zeros_like(self.state)       # whole-tick scratch (contact_kernels.whole_tick)
+            self._path, self._turn = np.zeros(n), np.zeros(n)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
             self._stepper = mod.advance_until_near_parallel if parallel else mod.advance_until_near
@@ -249,15 +251,16 @@ class World:
 
     def _step_with_contact(self, u: np.ndarray, nsub: int) -> None:
         st, solver = self.state, self._solver
-        wall = np.zeros(self.n_cars, dtype=bool)
-        car = np.zeros(self.n_cars, dtype=bool)
+        wall, car = self.contact_wall, self.contact_car      # filled in place, no allocation
+        wall[:] = False
+        car[:] = False
         pairs: list[tuple[int, int]] = []
         cols, piece, near = self._contact_cols, self._piece_i, self._near
         k = 0
         while k < nsub:
             k = self._stepper(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
                               u, k, nsub, DT, self.fuel_on, cols[0], cols[1], cols[2], piece,
-                              solver.broad_phase_args, near)
+                              solver.broad_phase_args, near, self._snap, self._path, self._turn)
             if near[0] == 0:
                 break
             rep = solver.resolve(*cols, piece, DT)
@@ -269,8 +272,6 @@ class World:
                 if self.damage_on:
                     st[:, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
                 kernel.refresh(st, self._cp, self._pt, self._surf, self._tsc, True)
-        self.contact_wall[:] = wall
-        self.contact_car[:] = car
         self.contact_pairs = pairs
 
     def _update_race_pos(self) -> None:
