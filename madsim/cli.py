@@ -337,6 +337,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     from madsim.train.commands import add_parsers as add_train_parsers
     add_train_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
+    __import__("madsim.experiments.commands").experiments.commands.add_parser(sub)
 
     conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
     vsub = conv.add_subparsers(dest="convert_command", required=True)
