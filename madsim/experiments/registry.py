@@ -125,8 +125,8 @@ BUDGETS = {
                     eval_episodes=100, eval_max_ticks=40, rllib_iterations=1, rllib_batch=200,
                     rllib_minibatch=100, rllib_runners=0),
     # about 12 minutes per experiment on a shared 2-core machine (see docs/paper-results.md)
-    "short": Budget(name="short", steps={"exp1": 150_000, "exp2": 90_000, "exp3": 150_000,
-                                         "exp4": 50_000, "exp5": 250_000},
+    "short": Budget(name="short", steps={"exp1": 400_000, "exp2": 250_000, "exp3": 400_000,
+                                         "exp4": 120_000, "exp5": 300_000},
                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
                     rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_runners=1),
     # the paper's scale (RLlib's default 4000 steps per iteration; exp3's 2500 iterations)

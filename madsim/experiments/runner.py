@@ -157,6 +157,37 @@ def _rllib_policies(run_dir: Path, cfg: dict) -> dict:
     return policies
 
 
+def _train_all(exp: Experiment, budget, out: Path, seed: int, address, log) -> dict:
+    """Train every sub-run (a sub-run after the one it starts from); sub-run name -> record.
+    With a Ray `address`, single-learner sub-runs train as Ray tasks on that cluster, those
+    that do not wait for another at once (`out` must be on a filesystem the nodes share);
+    Experiment 6's RLlib run uses the cluster's env runners."""
+    if exp.trainer == "rllib":
+        return {s.name: _train_rllib(exp, s, load_scenario(s), out / s.name, budget, seed,
+                                     address, log) for s in exp.subruns}
+    if address is None:
+        return {s.name: _train_sb3(exp, s, load_scenario(s), out / s.name, budget, seed, log)
+                for s in exp.subruns}
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address, log_to_driver=True)
+    task = ray.remote(num_cpus=1)(_train_sb3)
+    done: dict = {}
+    try:
+        while len(done) < len(exp.subruns):
+            wave = [s for s in exp.subruns if s.name not in done
+                    and (s.init_from is None or s.init_from in done)]
+            futures = [task.remote(exp, s, load_scenario(s), out.resolve() / s.name, budget, seed, print)
+                       for s in wave]
+            done.update(zip([s.name for s in wave], ray.get(futures)))
+    finally:
+        if started:
+            ray.shutdown()
+    return done
+
+
 def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
                    address: str | None = None, log=print) -> dict:
     """Run experiment `name` (exp1..exp6 or a sub-run selection like exp1-sab) at `budget`
@@ -181,14 +212,11 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
     conditions = {c.name: c for c in exp.conditions}
     wanted = exp.evaluations()
     episodes, results = [], []
+    trained = _train_all(exp, b, out, seed, address, log)
     for sub in exp.subruns:
         cfg = load_scenario(sub)
         run_dir = out / sub.name
-        t_sub = time.time()
-        if exp.trainer == "rllib":
-            info = _train_rllib(exp, sub, cfg, run_dir, b, seed, address, log)
-        else:
-            info = _train_sb3(exp, sub, cfg, run_dir, b, seed, log)
+        info = trained[sub.name]
         evals = [c for s, c in wanted if s == sub.name] if sub.evaluate else []
         if evals:
             if exp.trainer == "rllib":
@@ -213,7 +241,7 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
             episodes += [{"subrun": sub.name, "condition": cond, **e} for e in per]
             log(f"{exp.name}/{sub.name} [{cond}]: " + ", ".join(
                 f"{k} {v:.3f}" for k, v in summary.items() if isinstance(v, float)))
-        info.update(eval_wall_s=round(time.time() - t_eval, 1), wall_s=round(time.time() - t_sub, 1))
+        info.update(eval_wall_s=round(time.time() - t_eval, 1))
         record["subruns"][sub.name] = info
     _write_csv(out / "evaluation.csv", episodes)
     _write_csv(out / "results.csv", results)
