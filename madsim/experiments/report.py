@@ -15,7 +15,7 @@ from pathlib import Path
 
 from madsim.experiments.registry import PaperTable, experiment
 
-__all__ = ["madsim_table", "markdown_table", "read_results", "write_report"]
+__all__ = ["doc_section", "madsim_table", "markdown_table", "read_results", "write_report"]
 
 
 def read_results(out: Path) -> dict:
@@ -147,3 +147,19 @@ def write_report(out) -> str:
     (out / "table.md").write_text(text, encoding="utf-8")
     _picture(out / f"{exp.name}.png", exp, table, cells, record, out)
     return text
+
+
+def doc_section(out, image: str) -> str:
+    """A docs/paper-results.md section for result folder `out`: heading, command, wall time,
+    the table and the picture (`image`: its path relative to the doc)."""
+    out = Path(out)
+    record = json.loads((out / "experiment.json").read_text(encoding="utf-8"))
+    exp = experiment(record["experiment"])
+    cells = madsim_table(exp.table, read_results(out))
+    subs = record["subruns"]
+    speed = ", ".join(f"{n} {s['steps_per_s']:.0f}" for n, s in subs.items() if s.get("steps_per_s"))
+    return "\n".join([
+        f"### {exp.name}: {exp.title}", "",
+        f"`{record['command']}` - {record['wall_s'] / 60:.1f} min wall; training env-steps/s: {speed}.",
+        "", f"{exp.table.caption}. Each cell: madsim (paper).", "",
+        markdown_table(exp.table, cells), "", f"![{exp.name}]({image})", ""])

@@ -11,6 +11,7 @@ pytest.importorskip("stable_baselines3", reason="needs the 'train' extra")
 
 from madsim.experiments.evaluate import evaluate_single
 from madsim.experiments.registry import EXPERIMENTS, SubRun
+from madsim.experiments.report import doc_section
 from madsim.experiments.runner import load_scenario, run_experiment
 from madsim.train.evaluate import evaluate_policy
 
@@ -77,6 +78,8 @@ def test_smoke_run_writes_a_complete_result_folder(name, smoke_root):
     assert (out / f"{name}.png").stat().st_size > 10_000
     for sub in exp.subruns:
         assert (out / sub.name / "config.yml").is_file()
+    section = doc_section(out, f"paper-results/{name}.png")
+    assert lines[0] in section and f"![{name}](paper-results/{name}.png)" in section
 
 
 @pytest.mark.timeout(120)
