@@ -7,19 +7,11 @@ result folder), and the report (the paper's tables with madsim's numbers beside 
     madsim experiment report DIR
 
 Training needs the `train` extra (exp1-exp5) and the `rllib` extra (exp6); nothing heavy is
-imported here. See docs/paper-results.md.
+imported by this package. See docs/paper-results.md.
 """
 
+from madsim.experiments.registry import BUDGETS, EXPERIMENTS, experiment
+from madsim.experiments.report import write_report
+from madsim.experiments.runner import run_experiment
+
 __all__ = ["BUDGETS", "EXPERIMENTS", "experiment", "run_experiment", "write_report"]
-
-_WHERE = {"BUDGETS": "madsim.experiments.registry", "EXPERIMENTS": "madsim.experiments.registry",
-          "experiment": "madsim.experiments.registry", "run_experiment": "madsim.experiments.runner",
-          "write_report": "madsim.experiments.report"}
-
-
-def __getattr__(name: str):
-    if name in _WHERE:
-        import importlib
-
-        return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'madsim.experiments' has no attribute {name!r}")
