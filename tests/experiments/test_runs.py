@@ -49,7 +49,7 @@ def smoke_root(tmp_path_factory):
     return tmp_path_factory.mktemp("experiments")
 
 
-@pytest.mark.timeout(240)
+@pytest.mark.timeout(300)
 @pytest.mark.parametrize("name", list(EXPERIMENTS))
 def test_smoke_run_writes_a_complete_result_folder(name, smoke_root):
     if EXPERIMENTS[name].trainer == "rllib":
@@ -82,7 +82,7 @@ def test_smoke_run_writes_a_complete_result_folder(name, smoke_root):
     assert lines[0] in section and f"![{name}](paper-results/{name}.png)" in section
 
 
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(300)
 def test_same_seed_same_table(tmp_path):
     """Training and evaluation are seeded: two runs with one seed give one table."""
     a = run_experiment("exp4-none", budget="smoke", out=tmp_path / "a", seed=3, log=lambda *x: None)
@@ -91,3 +91,19 @@ def test_same_seed_same_table(tmp_path):
     for name in ("results.csv", "evaluation.csv"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
     assert _table_lines(tmp_path / "a") == _table_lines(tmp_path / "b")
+
+
+def test_cli_lists_runs_and_reports(tmp_path, capsys):
+    from madsim.cli import main
+
+    assert main(["experiment", "list"]) == 0
+    listing = capsys.readouterr().out
+    assert all(f"{name} " in listing for name in EXPERIMENTS) and "exp1-sab" in listing
+    assert main(["experiment", "run", "exp7", "--out", str(tmp_path / "x")]) == 2
+    assert "unknown experiment 'exp7'" in capsys.readouterr().err
+    assert main(["experiment", "run", "exp3-scratch", "--out", str(tmp_path / "s")]) == 0
+    (tmp_path / "s" / "table.md").unlink()
+    assert main(["experiment", "report", str(tmp_path / "s")]) == 0
+    assert "| Training from scratch |" in capsys.readouterr().out
+    assert (tmp_path / "s" / "table.md").is_file()
+    assert main(["experiment", "report", str(tmp_path)]) == 2      # not a result folder
