@@ -86,6 +86,9 @@ def _curves(ax, out: Path, record: dict) -> None:
         keep = [(a, b) for a, b in zip(x, y) if not (math.isnan(a) or math.isnan(b))]
         if keep:
             ax.plot([a for a, _ in keep], [b for _, b in keep], ".-", label=name)
+    from matplotlib.ticker import FuncFormatter
+
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x / 1000:g}k"))
     ax.set_xlabel("env steps (of this sub-run)")
     ax.set_ylabel("mean training episode return")
     ax.set_title("learning curves")
