@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import textwrap
 from pathlib import Path
 
 from madsim.experiments.registry import PaperTable, experiment
@@ -105,21 +106,24 @@ def _picture(path: Path, exp, table: PaperTable, cells: dict, record: dict, out:
 
     rows = _rows(table, cells)
     height = max(4.0, 0.28 * len(rows) + 2.0)
-    width_table = min(14.0, 2.0 + 1.6 * len(table.columns))
+    width_table = min(16.0, 2.0 + 1.6 * len(table.columns) + 0.06 * max(len(r[0]) for r in rows))
     fig, (ax_c, ax_t) = plt.subplots(1, 2, figsize=(5 + width_table, height),
                                      gridspec_kw={"width_ratios": [5, width_table]})
     _curves(ax_c, out, record)
     ax_t.axis("off")
     wrapped = [c if len(c) < 22 else c.replace(" ", "\n", 2) for c in table.columns]
-    t = ax_t.table(cellText=[r[1:] for r in rows], rowLabels=[r[0] for r in rows],
-                   colLabels=wrapped, loc="center", cellLoc="center")
+    label_w = max(len(r[0]) for r in rows) + 2
+    widths = [label_w] + [max(12, max(len(r[j]) for r in rows)) for j in range(1, len(rows[0]))]
+    total = float(sum(widths))
+    t = ax_t.table(cellText=rows, colLabels=[table.corner, *wrapped], loc="center",
+                   cellLoc="center", colWidths=[w / total for w in widths])
     t.auto_set_font_size(False)
     t.set_fontsize(7)
     t.scale(1.0, 1.35)
     for (i, _), cell in t.get_celld().items():
         if i == 0:
             cell.set_height(cell.get_height() * 2.2)
-    ax_t.set_title(f"madsim (paper): {table.caption}", fontsize=9)
+    ax_t.set_title(textwrap.fill(f"madsim (paper): {table.caption}", 90), fontsize=9)
     b = record.get("budget", {})
     fig.suptitle(f"{exp.name}: {exp.title} - budget {b.get('name')}, seed {record.get('seed')}",
                  fontsize=10)
