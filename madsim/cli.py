@@ -483,6 +483,12 @@ def _add_train_parser(sub) -> None:
     add_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
 
 
+def _add_experiment_parser(sub) -> None:
+    from madsim.experiments.commands import add_parser
+
+    add_parser(sub)
+
+
 def _add_render_parsers(sub) -> None:
     from madsim.render.commands import add_render_commands
 
@@ -492,7 +498,8 @@ def _add_render_parsers(sub) -> None:
 # One function per subcommand (or family), called in this order by build_parser: a new
 # subcommand is one function here, or an `add_...(sub)` in its own module listed here.
 SUBCOMMANDS = (add_run_parser, add_tracks_parser, add_cars_parser, add_config_parser, add_serve_parser,
-               add_drive_parser, _add_traffic_parser, _add_train_parser, add_convert_parser, _add_render_parsers)
+               add_drive_parser, _add_traffic_parser, _add_train_parser, _add_experiment_parser,
+               add_convert_parser, _add_render_parsers)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -58,7 +58,8 @@ class TrainSettings:
     n_steps: rollout length per env (default 2048 // num_envs, at least 64); eval_every:
     timesteps between evaluations (default steps // 10, at least one rollout; evaluations
     happen between rollouts, and once more at the end); eval_episodes
-    seeded deterministic episodes per evaluation (seeds 1,000,000 + k); normalize_reward:
+    seeded deterministic episodes per evaluation (seeds 1,000,000 + k; 0: no evaluation,
+    checkpoints only); normalize_reward:
     scale rewards by a running return std during training (the saved policy is unaffected);
     torch_threads: torch's intra-op threads. 1 by default: the networks are tiny, and on a
     busy 2-core machine two threads made PPO's update 4x slower (measured: 2,048 steps in
@@ -84,15 +85,18 @@ class TrainSettings:
     native_vec: bool | None = None
     torch_threads: int = 1
     verbose: bool = True
+    init_policy: str | None = None     # a policy.zip whose weights the run starts from
 
     def __post_init__(self):
         if self.algo != "ppo":
             raise TrainError(f"algo must be 'ppo' (the only algorithm wired so far), got {self.algo!r}")
-        for name in ("steps", "num_envs", "batch_size", "n_epochs", "eval_episodes",
-                     "torch_threads"):
+        for name in ("steps", "num_envs", "batch_size", "n_epochs", "torch_threads"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise TrainError(f"{name} must be an int >= 1, got {v!r}")
+        if isinstance(self.eval_episodes, bool) or not isinstance(self.eval_episodes, int) \
+                or self.eval_episodes < 0:
+            raise TrainError(f"eval_episodes must be an int >= 0, got {self.eval_episodes!r}")
         for name in ("n_steps", "eval_every"):
             v = getattr(self, name)
             if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
@@ -182,6 +186,10 @@ def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float, stop):
             self.evaluate()
 
         def evaluate(self) -> None:
+            if settings.eval_episodes == 0:          # checkpoints only (the caller evaluates)
+                self.model.save(run_dir / "checkpoints" / f"step_{self.num_timesteps:09d}.zip")
+                self.next_eval = self.num_timesteps + settings.eval_interval
+                return
             policy = Policy(self.model)
 
             def guarded(obs):
@@ -251,7 +259,7 @@ def _callbacks(run_dir: Path, cfg, settings: TrainSettings, t0: float, stop):
                     self.curriculum_warned = True
 
         def _on_training_end(self) -> None:
-            if not stop and self.rows[-1]["timesteps"] != self.num_timesteps:
+            if not stop and self.rows and self.rows[-1]["timesteps"] != self.num_timesteps:
                 self.evaluate()
             if self.bar is not None:
                 self.bar.close()
@@ -313,6 +321,8 @@ def train(config, out_dir, settings: TrainSettings, *, overwrite: bool = False, 
                 gae_lambda=settings.gae_lambda, ent_coef=settings.ent_coef,
                 policy_kwargs={"net_arch": list(settings.net)}, seed=settings.seed,
                 device="cpu", verbose=0)
+    if settings.init_policy is not None:         # fine-tuning (a curriculum's second phase)
+        model.policy.load_state_dict(load_policy(settings.init_policy).model.policy.state_dict())
     with_tb = importlib.util.find_spec("tensorboard") is not None
     model.set_logger(_logger(run_dir, with_tb))
     record = {

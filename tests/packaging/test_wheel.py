@@ -27,7 +27,9 @@ def test_wheel_contains_every_bundled_asset(wheel):
     names = set(wheel.namelist())
     assets = sorted(p.relative_to(REPO).as_posix() for p in (REPO / "madsim" / "assets").rglob("*.xml"))
     assets += sorted(p.relative_to(REPO).as_posix() for p in (REPO / "madsim" / "envs" / "configs").glob("*.yml"))
-    assert any(a.endswith("single_lap.yml") for a in assets)
+    assets += sorted(p.relative_to(REPO).as_posix()
+                     for p in (REPO / "madsim" / "experiments" / "scenarios").glob("*.yml"))
+    assert any(a.endswith("single_lap.yml") for a in assets) and any(a.endswith("exp6.yml") for a in assets)
     assert any("/tracks/madsim-road/madsim-road.xml" in a for a in assets)
     missing = [a for a in assets if a not in names]
     assert not missing, missing
