@@ -122,8 +122,9 @@ def evaluate_pair(policies: dict, cfg: dict, *, episodes: int = 100, seed: int =
         for k in range(int(episodes)):
             obs, infos = env.reset(seed=int(seed) + k)
             length = float(infos[names[0]]["track_length"])
-            # distance from each car's start to the finish line: the grid is behind the line
+            # signed distance from each car's start to the line (the grid is behind it)
             start_gap = {a: (length - infos[a]["placement"][0]) % length for a in names}
+            start_gap = {a: g - length if g > length / 2 else g for a, g in start_gap.items()}
             rec = {a: {"d": [], "vx": [], "vy": [], "r": [], "dones": (), "passed": None,
                        "end": None} for a in names}
             step = 0
