@@ -80,6 +80,11 @@ def test_run_render_without_a_display_says_so(capsys, monkeypatch):
 def test_run_render_in_a_window_stops_on_sigterm(tmp_path):
     """With a (virtual) display the window opens; SIGTERM ends the run, not just the drawing."""
     pytest.importorskip("pygame")
+    # the same run for a few steps first: a fresh clone compiles its kernels in the first run, and a
+    # signal waits for a compile to finish (numba holds the interpreter); the timed run loads them
+    warm = subprocess.run(["xvfb-run", "-a", sys.executable, "-m", "madsim.cli", "run", "--render", "--quiet",
+                           "--max-steps", "20"], cwd=tmp_path, capture_output=True, text=True, timeout=240)
+    assert warm.returncode == 0, warm.stderr
     proc = subprocess.Popen(["xvfb-run", "-a", sys.executable, "-m", "madsim.cli", "run", "--render", "--quiet",
                              "--episodes", "3"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, start_new_session=True)
