@@ -245,13 +245,15 @@ class WorldBatch:
         self._info = np.zeros(2, dtype=np.int64)
         self._tracks: dict[int, int] = {}            # id(Track) -> index
         self._track_objs: list[Track] = []
+        # per track: (pt, surf, tsc, geo, runs, prun) in Python, and in typed lists for the kernels
+        self._tables: list[tuple] = []
         self._pt, self._surf, self._tsc = typed.List(), typed.List(), typed.List()
         self._geo, self._runs, self._prun = typed.List(), typed.List(), typed.List()
         self._half = np.zeros(0)
         self._kinds: dict = {}
         self._slot_kind: list[_Kind | None] = [None] * self.n_slots
         self._solver: list = [None] * self.n_slots     # attached ContactSolver per slot
-        self._bps = typed.List([_dummy_bp()] * self.n_slots)   # broad-phase args per slot
+        self._bps = _list_of(_dummy_bp(), self.n_slots)   # broad-phase args per slot
         self._noise_rng: list = [None] * self.n_slots
         self._noisy_slots = 0
         self._focus_state: list = [None] * self.n_slots
@@ -303,7 +305,7 @@ class WorldBatch:
         self._focus_state[slot] = FocusState(n) if self.focus else None
         if self.contact:
             consts, caches = kind.solver_args[:_SOLVER_CONSTS], kind.solver_args[_SOLVER_CONSTS:]
-            self._bps[slot] = consts + tuple(c.copy() for c in caches)
+            _list_set(self._bps, slot, consts + tuple(c.copy() for c in caches))
 
     def _kind(self, key, track: Track, cars: list[CarSpec]) -> _Kind:
         kind = self._kinds.get(key)
@@ -315,7 +317,7 @@ class WorldBatch:
         kind = _Kind(world, self._track_of(track), cp, curve_w, curve_t)
         if self.contact:
             solver = self._new_solver(kind)
-            geo = self._geo[kind.track_index]
+            geo = self._tables[kind.track_index][3]
             args = solver.broad_phase_args
             # the slot copies hold writable arrays only (one numba type for every slot)
             kind.solver_args = (geo,) + tuple(args[1:_SOLVER_CONSTS]) + tuple(
@@ -330,13 +332,17 @@ class WorldBatch:
             t = len(self._track_objs)
             self._tracks[id(track)] = t
             self._track_objs.append(track)
-            pt, surf, tsc = piece_table(track)
-            self._pt.append(pt)
-            self._surf.append(surf)
-            self._tsc.append(tsc)
-            self._geo.append(np.array(track.geo, dtype=np.float64))
-            self._runs.append(np.array(track.runs, dtype=np.float64))
-            self._prun.append(np.array(track.piece_run, dtype=np.int64))
+            tables = piece_table(track) + (np.array(track.geo, dtype=np.float64),
+                                           np.array(track.runs, dtype=np.float64),
+                                           np.array(track.piece_run, dtype=np.int64))
+            self._tables.append(tables)
+            if t == 0:
+                (self._pt, self._surf, self._tsc, self._geo, self._runs,
+                 self._prun) = (_list_of(x, 1) for x in tables)
+            else:
+                for lst, x in zip((self._pt, self._surf, self._tsc, self._geo, self._runs,
+                                   self._prun), tables):
+                    _list_append(lst, x)
             self._half = np.append(self._half, track.width / 2)
         return t
 
@@ -374,7 +380,7 @@ class WorldBatch:
         """Give the slot a contact solver holding its broad-phase caches."""
         kind = self._slot_kind[slot]
         solver = kind.pool.pop() if kind.pool else self._new_solver(kind)
-        mine = self._bps[slot]
+        mine = _list_get(self._bps, slot)
         theirs = solver.broad_phase_args
         for src, dst in zip(mine[_SOLVER_CONSTS:], theirs[_SOLVER_CONSTS:]):
             k = min(src.shape[0], dst.shape[0])
@@ -429,9 +435,10 @@ class WorldBatch:
             if self.damage:
                 st[rows, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
             t = int(self._track[slot])
-            kernel.refresh(st[rows], self._cp[rows], self._pt[t], self._surf[t], self._tsc[t], True)
+            pt, surf, tsc = self._tables[t][:3]
+            kernel.refresh(st[rows], self._cp[rows], pt, surf, tsc, True)
         args = solver.broad_phase_args          # resolve may have grown its pair list
-        self._bps[slot] = (self._geo[int(self._track[slot])],) + tuple(args[1:])
+        _list_set(self._bps, slot, (self._tables[int(self._track[slot])][3],) + tuple(args[1:]))
 
     def sense(self, mask: np.ndarray) -> None:
         """Compute `sensors` of the masked slots (as `SensorSuite.frame`; `step` does this)."""
@@ -468,6 +475,34 @@ class WorldBatch:
     def solvers_attached(self) -> int:
         """Slots that currently hold a contact solver."""
         return sum(s is not None for s in self._solver)
+
+
+# typed-list operations inside cached kernels: numba compiles typed.List's Python-side methods
+# in every process (about 0.15 s per item type and operation), these come from the disk cache
+
+
+@numba.njit(cache=True)
+def _list_of(item, n):
+    """A typed list of n times `item`."""
+    out = typed.List()
+    for _ in range(n):
+        out.append(item)
+    return out
+
+
+@numba.njit(cache=True)
+def _list_append(items, item):
+    items.append(item)
+
+
+@numba.njit(cache=True)
+def _list_set(items, i, item):
+    items[i] = item
+
+
+@numba.njit(cache=True)
+def _list_get(items, i):
+    return items[i]
 
 
 def _dummy_bp() -> tuple:
