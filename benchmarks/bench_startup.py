@@ -24,35 +24,26 @@ import subprocess
 import sys
 import time
 
-ENV = r"""
+def _first_step(imports: str, make: str) -> str:
+    """A script timing `imports`, `make` (which binds `env`), `reset(seed=0)` and one step."""
+    return f"""
 import time
 t0 = time.perf_counter()
-from madsim.envs import MadrasEnv
+{imports}
 t1 = time.perf_counter()
-env = MadrasEnv()
+{make}
 t2 = time.perf_counter()
 env.reset(seed=0)
 t3 = time.perf_counter()
 env.step(env.action_space.sample())
 t4 = time.perf_counter()
-print(f"import {t1 - t0:.3f} make {t2 - t1:.3f} reset {t3 - t2:.3f} first step {t4 - t3:.3f} "
-      f"total {t4 - t0:.3f}")
+print(f"import {{t1 - t0:.3f}} make {{t2 - t1:.3f}} reset {{t3 - t2:.3f}} "
+      f"first step {{t4 - t3:.3f}} total {{t4 - t0:.3f}}")
 """
 
-VEC = r"""
-import time
-t0 = time.perf_counter()
-import madsim
-t1 = time.perf_counter()
-env = madsim.make_vec(num_envs=64)
-t2 = time.perf_counter()
-env.reset(seed=0)
-t3 = time.perf_counter()
-env.step(env.action_space.sample())
-t4 = time.perf_counter()
-print(f"import {t1 - t0:.3f} make {t2 - t1:.3f} reset {t3 - t2:.3f} first step {t4 - t3:.3f} "
-      f"total {t4 - t0:.3f}")
-"""
+
+ENV = _first_step("from madsim.envs import MadrasEnv", "env = MadrasEnv()")
+VEC = _first_step("import madsim", "env = madsim.make_vec(num_envs=64)")
 
 WORLD = r"""
 import time
