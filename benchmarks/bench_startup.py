@@ -8,6 +8,8 @@ first repetition after a source change compiles):
   (issue 13's aim: at most 1.0 s in total);
 - `world`: import `World`, load g-track-1 and car1-trb1, build the World and a SensorSuite, one
   tick (physics + sensors + encoder);
+- `vec`: `import madsim`, `make_vec(num_envs=64)` (default scenario), `reset(seed=0)`, one
+  `step` of 64 actions (the batch loops of `physics/batch.py` are cached kernels too);
 - `serve`: `madsim serve` from the process start to "waiting for" clients (imports, world,
   warm-up of every race kernel, heap freeze): what a client waits for before identifying.
 Prints each run's phases and the median total per case.
@@ -22,20 +24,26 @@ import subprocess
 import sys
 import time
 
-ENV = r"""
+def _first_step(imports: str, make: str) -> str:
+    """A script timing `imports`, `make` (which binds `env`), `reset(seed=0)` and one step."""
+    return f"""
 import time
 t0 = time.perf_counter()
-from madsim.envs import MadrasEnv
+{imports}
 t1 = time.perf_counter()
-env = MadrasEnv()
+{make}
 t2 = time.perf_counter()
 env.reset(seed=0)
 t3 = time.perf_counter()
 env.step(env.action_space.sample())
 t4 = time.perf_counter()
-print(f"import {t1 - t0:.3f} make {t2 - t1:.3f} reset {t3 - t2:.3f} first step {t4 - t3:.3f} "
-      f"total {t4 - t0:.3f}")
+print(f"import {{t1 - t0:.3f}} make {{t2 - t1:.3f}} reset {{t3 - t2:.3f}} "
+      f"first step {{t4 - t3:.3f}} total {{t4 - t0:.3f}}")
 """
+
+
+ENV = _first_step("from madsim.envs import MadrasEnv", "env = MadrasEnv()")
+VEC = _first_step("import madsim", "env = madsim.make_vec(num_envs=64)")
 
 WORLD = r"""
 import time
@@ -83,10 +91,14 @@ def _serve() -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--cases", default="env,vec,world,serve", help="comma-separated subset")
     args = ap.parse_args()
+    chosen = args.cases.split(",")
     print(f"load: {os.getloadavg()[0]:.2f} (1 min)")
-    for case, run in (("env", lambda: _python(ENV)), ("world", lambda: _python(WORLD)),
-                      ("serve", _serve)):
+    for case, run in (("env", lambda: _python(ENV)), ("vec", lambda: _python(VEC)),
+                      ("world", lambda: _python(WORLD)), ("serve", _serve)):
+        if case not in chosen:
+            continue
         totals = []
         for _ in range(args.reps):
             line = run()

@@ -34,7 +34,7 @@ from numba import typed
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
-from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, whole_tick
+from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, _broad_phase, whole_tick
 from madsim.physics.sensors import (
     N_VALUES,
     O_FOCUS,
@@ -53,98 +53,119 @@ from madsim.tracks.track import Track
 __all__ = ["WorldBatch"]
 
 _SOLVER_CONSTS = 4       # broad_phase_args: (geo, bar, cars, prm) never written, then 6 caches
-_KERNELS: dict = {}
+
+# The batch loops are module-level kernels in numba's disk cache (`madsim.kernel_cache` renews
+# their entries when any kernel module changes): one per-slot body each, run by a serial and a
+# parallel (slots shared among threads) loop. With contact off the broad phase is never called.
 
 
-def _kernels(broad_phase, parallel: bool):
-    """The compiled batch loops (built once per process: they link the physics, contact and
-    sensor modules' compiled code, which numba's disk cache would not track)."""
-    key = (broad_phase, parallel)
-    if key in _KERNELS:
-        return _KERNELS[key]
-    advance_car = kernel.advance_car
-    whole = whole_tick      # (its car prange runs serially here: the slots are the threads' unit)
-    slipstream = kernel.slipstream
-    t_length = L.T_LENGTH
-    rng_ = numba.prange if parallel else range
-    s_piece, s_x, s_y, s_yaw = L.S_PIECE, L.S_X, L.S_Y, L.S_YAW
-    s_laps, s_dist = L.S_LAPS, L.S_DIST
-
-    @numba.njit(parallel=parallel, error_model="numpy")
-    def advance(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece,
-                bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
-        # per slot, World.step: sub-steps from kpos (the rest at once where provably nothing
-        # is near) until the broad phase finds something near (near[e] != 0, kpos[e] =
-        # sub-steps done) or all nsub are done (near[e] = 0)
-        for e in rng_(off.shape[0]):
-            if not run[e]:
-                continue
-            a, b = off[e], off[e] + ncar[e]
-            t = trk[e]
-            pt, surf, tsc = pts[t], surfs[t], tscs[t]
-            k = kpos[e]
-            if k == 0:
-                hits[a:b] = False
-                if b - a > 1:      # World.step: slipstream from the poses at the tick's start
-                    slipstream(st, cp, a, b, tsc[t_length])
-            if not with_contact:
-                for i in range(a, b):
-                    advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, nsub, dt, fuel_on)
-                kpos[e] = nsub
-                near[e] = 0
-                continue
-            bp = bps[np.int64(e)]
-            found = 0
-            while k < nsub:
-                k += whole(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp,
-                           snap, path, turn)
-                for i in range(a, b):
-                    piece[i] = int(st[i, s_piece])
-                if b - a == 1 and _clear_of_walls(st[a, s_x], st[a, s_y], st[a, s_yaw], piece[a],
-                                                  bp[0], bp[2], bp[3], bp[4], bp[8], bp[9]):
-                    continue
-                found = broad_phase(st[a:b, s_x], st[a:b, s_y], st[a:b, s_yaw], piece[a:b],
-                                    bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7],
-                                    bp[8], bp[9])
-                if found != 0:
-                    break
-            kpos[e] = k
-            near[e] = found
-
-    @numba.njit(parallel=parallel, error_model="numpy")
-    def sense(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-              active, max_range, local, out):
-        # per slot, SensorSuite.frame without focus and noise: the slot's cars only
-        for e in rng_(off.shape[0]):
-            if not run[e]:
-                continue
-            a, b = off[e], off[e] + ncar[e]
-            t = trk[e]
-            sensor_kernel(local[:b - a], st[a:b], geos[t], runs[t], pruns[t], half[t],
-                          angles[a:b], race_pos[a:b], origin[a:b], active[a:b], max_range,
-                          out[a:b])
-
-    @numba.njit(error_model="numpy")
-    def race_positions(st, run, off, ncar, race_pos):
-        # World._update_race_pos per slot: rank by laps, then distance raced, then row
-        for e in range(off.shape[0]):
-            if not run[e] or ncar[e] < 2:
-                continue
-            a, b = off[e], off[e] + ncar[e]
-            for i in range(a, b):
-                li, di = st[i, s_laps], st[i, s_dist]
-                rank = 1
-                for j in range(a, b):
-                    lj, dj = st[j, s_laps], st[j, s_dist]
-                    if lj > li or (lj == li and (dj > di or (dj == di and j < i))):
-                        rank += 1
-                race_pos[i] = rank
-
-    _KERNELS[key] = (advance, sense, race_positions)
-    return _KERNELS[key]
+@numba.njit(cache=True, error_model="numpy")
+def _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near, piece, bps,
+                  hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
+    """World.step for slot e: sub-steps from kpos[e] (the rest at once where provably nothing
+    is near) until the broad phase finds something near (near[e] != 0, kpos[e] = sub-steps
+    done) or all nsub are done (near[e] = 0)."""
+    a, b = off[e], off[e] + ncar[e]
+    t = trk[e]
+    pt, surf, tsc = pts[t], surfs[t], tscs[t]
+    k = kpos[e]
+    if k == 0:
+        hits[a:b] = False
+        if b - a > 1:      # World.step: slipstream from the poses at the tick's start
+            kernel.slipstream(st, cp, a, b, tsc[L.T_LENGTH])
+    if not with_contact:
+        for i in range(a, b):
+            kernel.advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, nsub, dt, fuel_on)
+        kpos[e] = nsub
+        near[e] = 0
+        return
+    bp = bps[np.int64(e)]
+    found = 0
+    while k < nsub:
+        k += whole_tick(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp, snap,
+                        path, turn)
+        for i in range(a, b):
+            piece[i] = int(st[i, L.S_PIECE])
+        if b - a == 1 and _clear_of_walls(st[a, L.S_X], st[a, L.S_Y], st[a, L.S_YAW], piece[a],
+                                          bp[0], bp[2], bp[3], bp[4], bp[8], bp[9]):
+            continue
+        found = _broad_phase(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
+                             bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], bp[8], bp[9])
+        if found != 0:
+            break
+    kpos[e] = k
+    near[e] = found
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True, error_model="numpy")
+def _advance(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece, bps,
+             hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
+    """`_advance_slot` for every slot where run[e], one after the other."""
+    for e in range(off.shape[0]):
+        if run[e]:
+            _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near,
+                          piece, bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn)
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _advance_parallel(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece,
+                      bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
+    """`_advance` with the slots shared among threads (independent: bit-identical)."""
+    for e in numba.prange(off.shape[0]):
+        if run[e]:
+            _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near,
+                          piece, bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin, active,
+                max_range, local, out):
+    """SensorSuite.frame without focus and noise for slot e's cars."""
+    a, b = off[e], off[e] + ncar[e]
+    t = trk[e]
+    sensor_kernel(local[:b - a], st[a:b], geos[t], runs[t], pruns[t], half[t], angles[a:b],
+                  race_pos[a:b], origin[a:b], active[a:b], max_range, out[a:b])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _sense(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin, active,
+           max_range, local, out):
+    """`_sense_slot` for every slot where run[e], one after the other."""
+    for e in range(off.shape[0]):
+        if run[e]:
+            _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
+                        active, max_range, local, out)
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _sense_parallel(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
+                    active, max_range, local, out):
+    """`_sense` with the slots shared among threads."""
+    for e in numba.prange(off.shape[0]):
+        if run[e]:
+            _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
+                        active, max_range, local, out)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _race_positions(st, run, off, ncar, race_pos):
+    """World._update_race_pos per slot where run[e]: rank by laps, then distance raced, then
+    row."""
+    for e in range(off.shape[0]):
+        if not run[e] or ncar[e] < 2:
+            continue
+        a, b = off[e], off[e] + ncar[e]
+        for i in range(a, b):
+            li, di = st[i, L.S_LAPS], st[i, L.S_DIST]
+            rank = 1
+            for j in range(a, b):
+                lj, dj = st[j, L.S_LAPS], st[j, L.S_DIST]
+                if lj > li or (lj == li and (dj > di or (dj == di and j < i))):
+                    rank += 1
+            race_pos[i] = rank
+
+
+@numba.njit(cache=True, inline="always")
 def _clear_of_walls(x, y, yaw, piece, geo, cars, prm, wall_cache, flags, slack):
     """The contact broad phase's first test for a lone car, with the same arithmetic and
     effects: True if the car's cached wall clearance cannot have been used up since it was
@@ -224,19 +245,23 @@ class WorldBatch:
         self._info = np.zeros(2, dtype=np.int64)
         self._tracks: dict[int, int] = {}            # id(Track) -> index
         self._track_objs: list[Track] = []
+        # per track: (pt, surf, tsc, geo, runs, prun) in Python, and in typed lists for the kernels
+        self._tables: list[tuple] = []
         self._pt, self._surf, self._tsc = typed.List(), typed.List(), typed.List()
         self._geo, self._runs, self._prun = typed.List(), typed.List(), typed.List()
         self._half = np.zeros(0)
         self._kinds: dict = {}
         self._slot_kind: list[_Kind | None] = [None] * self.n_slots
         self._solver: list = [None] * self.n_slots     # attached ContactSolver per slot
-        self._bps = typed.List([_dummy_bp()] * self.n_slots)   # broad-phase args per slot
+        self._bps = _list_of(_dummy_bp(), self.n_slots)   # broad-phase args per slot
         self._noise_rng: list = [None] * self.n_slots
         self._noisy_slots = 0
         self._focus_state: list = [None] * self.n_slots
         self.contact_pairs: list[list] = [[] for _ in range(self.n_slots)]
         self.solvers_built = 0
-        self._advance, self._sense, self._race = _kernels(_broad_phase(self.contact), bool(threads))
+        threads = bool(threads)
+        self._advance = _advance_parallel if threads else _advance
+        self._sense = _sense_parallel if threads else _sense
 
     # --- episodes -----------------------------------------------------------------------------
 
@@ -280,7 +305,7 @@ class WorldBatch:
         self._focus_state[slot] = FocusState(n) if self.focus else None
         if self.contact:
             consts, caches = kind.solver_args[:_SOLVER_CONSTS], kind.solver_args[_SOLVER_CONSTS:]
-            self._bps[slot] = consts + tuple(c.copy() for c in caches)
+            _list_set(self._bps, slot, consts + tuple(c.copy() for c in caches))
 
     def _kind(self, key, track: Track, cars: list[CarSpec]) -> _Kind:
         kind = self._kinds.get(key)
@@ -292,7 +317,7 @@ class WorldBatch:
         kind = _Kind(world, self._track_of(track), cp, curve_w, curve_t)
         if self.contact:
             solver = self._new_solver(kind)
-            geo = self._geo[kind.track_index]
+            geo = self._tables[kind.track_index][3]
             args = solver.broad_phase_args
             # the slot copies hold writable arrays only (one numba type for every slot)
             kind.solver_args = (geo,) + tuple(args[1:_SOLVER_CONSTS]) + tuple(
@@ -307,13 +332,17 @@ class WorldBatch:
             t = len(self._track_objs)
             self._tracks[id(track)] = t
             self._track_objs.append(track)
-            pt, surf, tsc = piece_table(track)
-            self._pt.append(pt)
-            self._surf.append(surf)
-            self._tsc.append(tsc)
-            self._geo.append(np.array(track.geo, dtype=np.float64))
-            self._runs.append(np.array(track.runs, dtype=np.float64))
-            self._prun.append(np.array(track.piece_run, dtype=np.int64))
+            tables = piece_table(track) + (np.array(track.geo, dtype=np.float64),
+                                           np.array(track.runs, dtype=np.float64),
+                                           np.array(track.piece_run, dtype=np.int64))
+            self._tables.append(tables)
+            if t == 0:
+                (self._pt, self._surf, self._tsc, self._geo, self._runs,
+                 self._prun) = (_list_of(x, 1) for x in tables)
+            else:
+                for lst, x in zip((self._pt, self._surf, self._tsc, self._geo, self._runs,
+                                   self._prun), tables):
+                    _list_append(lst, x)
             self._half = np.append(self._half, track.width / 2)
         return t
 
@@ -351,7 +380,7 @@ class WorldBatch:
         """Give the slot a contact solver holding its broad-phase caches."""
         kind = self._slot_kind[slot]
         solver = kind.pool.pop() if kind.pool else self._new_solver(kind)
-        mine = self._bps[slot]
+        mine = _list_get(self._bps, slot)
         theirs = solver.broad_phase_args
         for src, dst in zip(mine[_SOLVER_CONSTS:], theirs[_SOLVER_CONSTS:]):
             k = min(src.shape[0], dst.shape[0])
@@ -389,7 +418,7 @@ class WorldBatch:
             run[near] = self._kpos[near] < SUBSTEPS
             if not run.any():
                 break
-        self._race(self.state, mask, self.offsets, self.n_cars, self.race_pos)
+        _race_positions(self.state, mask, self.offsets, self.n_cars, self.race_pos)
         self.sense(mask)
 
     def _resolve(self, slot: int) -> None:
@@ -406,9 +435,10 @@ class WorldBatch:
             if self.damage:
                 st[rows, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
             t = int(self._track[slot])
-            kernel.refresh(st[rows], self._cp[rows], self._pt[t], self._surf[t], self._tsc[t], True)
+            pt, surf, tsc = self._tables[t][:3]
+            kernel.refresh(st[rows], self._cp[rows], pt, surf, tsc, True)
         args = solver.broad_phase_args          # resolve may have grown its pair list
-        self._bps[slot] = (self._geo[int(self._track[slot])],) + tuple(args[1:])
+        _list_set(self._bps, slot, (self._tables[int(self._track[slot])][3],) + tuple(args[1:]))
 
     def sense(self, mask: np.ndarray) -> None:
         """Compute `sensors` of the masked slots (as `SensorSuite.frame`; `step` does this)."""
@@ -447,20 +477,32 @@ class WorldBatch:
         return sum(s is not None for s in self._solver)
 
 
-def _broad_phase(contact: bool):
-    """The contact solver's compiled broad phase (`ContactSolver.broad_phase_kernel`, which
-    does not depend on the instance), or a stand-in that finds nothing."""
-    if contact:
-        from madsim.physics.contact import ContactSolver
-
-        return ContactSolver.broad_phase_kernel.fget(None)
-    return _nothing_near
+# typed-list operations inside cached kernels: numba compiles typed.List's Python-side methods
+# in every process (about 0.15 s per item type and operation), these come from the disk cache
 
 
-@numba.njit
-def _nothing_near(x, y, yaw, piece, geo, bar, cars, prm, wall_cache, vref, pairs, meta, flags,
-                  slack):
-    return 0
+@numba.njit(cache=True)
+def _list_of(item, n):
+    """A typed list of n times `item`."""
+    out = typed.List()
+    for _ in range(n):
+        out.append(item)
+    return out
+
+
+@numba.njit(cache=True)
+def _list_append(items, item):
+    items.append(item)
+
+
+@numba.njit(cache=True)
+def _list_set(items, i, item):
+    items[i] = item
+
+
+@numba.njit(cache=True)
+def _list_get(items, i):
+    return items[i]
 
 
 def _dummy_bp() -> tuple:
