@@ -11,12 +11,13 @@ import sys
 
 import numpy as np
 import pytest
+from kernel_probe import DISPATCHERS
 
 from madsim.net.server import warm_up
 
 # Run in a fresh process: build a 2-car world, run the server's warm-up (every kernel a race
 # calls, contact included), then list the madsim dispatchers that compiled instead of loading.
-PROBE = r"""
+PROBE = DISPATCHERS + r"""
 import json, sys
 import numba
 import numpy as np
@@ -24,13 +25,6 @@ from madsim.cli import make_world_factory
 from madsim.net import protocol as P
 from madsim.net.server import warm_up
 from madsim.physics.sensors import SensorSuite
-
-def dispatchers():
-    for name, mod in list(sys.modules.items()):
-        if name.startswith("madsim."):
-            for attr, obj in vars(mod).items():
-                if isinstance(obj, numba.core.dispatcher.Dispatcher) and obj.__module__ == name:
-                    yield f"{name}.{attr}", obj
 
 make = make_world_factory("madsim-oval", ["car1-trb1"], 2, fuel=True, damage=True)
 warm_up(make(0))

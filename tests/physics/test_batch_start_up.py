@@ -10,10 +10,11 @@ import subprocess
 import sys
 
 import pytest
+from kernel_probe import DISPATCHERS
 
 # A fresh process: a two-episode vector env (default scenario: contact on), reset, one step;
 # then the madsim dispatchers that loaded from the cache and those that compiled.
-PROBE = r"""
+PROBE = DISPATCHERS + r"""
 import json, sys
 import numba
 import madsim
@@ -21,13 +22,6 @@ import madsim
 env = madsim.make_vec(num_envs=2)
 env.reset(seed=0)
 env.step(env.action_space.sample())
-
-def dispatchers():
-    for name, mod in list(sys.modules.items()):
-        if name.startswith("madsim."):
-            for attr, obj in vars(mod).items():
-                if isinstance(obj, numba.core.dispatcher.Dispatcher) and obj.__module__ == name:
-                    yield f"{name}.{attr}", obj
 
 print(json.dumps({"hits": [n for n, d in dispatchers() if d.stats.cache_hits],
                   "misses": [n for n, d in dispatchers() if d.stats.cache_misses]}))
