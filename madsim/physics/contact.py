@@ -230,7 +230,7 @@ class ContactSolver:
         self.reset()
         # a solver dropped while holding a space gives it back (emptied) as reset() does
         weakref.finalize(self, _give_back, self._pool, self._lease, self._bodies, self._shapes,
-                         self._member)
+                         self._member).atexit = False
 
     # --- public -----------------------------------------------------------------------------
 
