@@ -15,7 +15,11 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
    path length and turn): when it proves every call on the way would find nothing and change
    no cache, World and WorldBatch advance the cars that stretch in one kernel call.
 2. Narrow phase (pymunk). Cars are box bodies of their size, barriers static segments built once
-   from the track's barrier polylines (one static body per barrier material). Only cars near
+   per track from the track's barrier polylines (one static body per barrier material): a solver
+   holds a barrier space only between its first consultation and `reset()`, which empties it and
+   returns it to the track's pool, so a later solver on the same Track object (a reset onto a
+   track used before) takes it instead of building one (40-300 ms). A space coming back holds
+   no car and no contact, as a fresh one, and results are bit-identical (tested). Only cars near
    something are in the pymunk space (they leave after `IDLE_CALLS` consultations without);
    their poses go in through `pymunk.batch`, one `space.step` finds the contacts, and the
    manifolds come back through `pymunk.batch` as arrays. pymunk's bodies never move (no
@@ -61,6 +65,7 @@ ignored.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,6 +112,9 @@ _ARB_FIELDS = (pmb.ArbiterFields.BODY_A_ID | pmb.ArbiterFields.BODY_B_ID | pmb.A
                | pmb.ArbiterFields.DISTANCE_2)
 _ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2 x (pa, pb, dist))
 _F64, _I64 = np.dtype(np.float64), np.dtype(np.int64)
+
+# Track -> its free barrier spaces (a cache: which space a solver takes never changes a result)
+_POOLS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True)
@@ -184,8 +192,13 @@ class ContactSolver:
         self._travel = np.zeros(n)
 
         # --- pymunk ----------------------------------------------------------------------------
-        self._space, self._mat_bodies, mat_ids = _wall_space(track)
-        self._mat = _material_table(track, mat_ids, wall_friction, rebound)
+        self._pool = _POOLS.get(track)
+        if self._pool is None:
+            self._pool = _POOLS[track] = _SpacePool(track)
+        self._pool.keep_one_free()         # built now, not at the first contact of an episode
+        self._mat = _material_table(track, self._pool.mat_ids, wall_friction, rebound)
+        self._space = None                 # held between the first consultation and reset()
+        self._mat_bodies: list = []
         self._bodies, self._shapes = [], []
         for i in range(n):
             body = pymunk.Body(float(arrays["mass"][i]), float(arrays["izz"][i]))
@@ -195,11 +208,8 @@ class ContactSolver:
             shape.friction = 0.0
             self._bodies.append(body)
             self._shapes.append(shape)
-        keys = np.array([b.id for b in self._bodies] + [b.id for b in self._mat_bodies], dtype=np.int64)
-        codes = np.concatenate([np.arange(n), -1 - np.arange(len(self._mat_bodies))]).astype(np.int64)
-        order = np.argsort(keys, kind="stable")
-        self._id_keys, self._id_codes = keys[order], codes[order]
-        self._code_of = dict(zip(keys.tolist(), codes.tolist()))
+        self._id_keys = self._id_codes = np.zeros(0, dtype=np.int64)
+        self._code_of: dict = {}
         self._member = np.zeros(n, dtype=bool)
         self._idle = np.zeros(n, dtype=np.int64)
         self._add = np.zeros(n, dtype=np.int64)
@@ -216,23 +226,32 @@ class ContactSolver:
             a.setflags(write=False)
         self._empty = ContactReport(wall=empty_b, car=empty_b, damage=empty_f, pairs=[])
         self._counts = {"calls": 0, "consults": 0, "pymunk_steps": 0}
+        self._lease = [None]               # the held (space, material bodies), for the finaliser
         self.reset()
+        # a solver dropped while holding a space gives it back (emptied) as reset() does
+        weakref.finalize(self, _give_back, self._pool, self._lease, self._bodies, self._shapes,
+                         self._member).atexit = False
 
     # --- public -----------------------------------------------------------------------------
 
     def reset(self) -> None:
-        """Forget every cached contact, clearance and neighbour list (new episode)."""
-        for i in np.flatnonzero(self._member):
-            self._space.remove(self._bodies[i], self._shapes[i])
+        """Forget every cached contact, clearance and neighbour list (new episode); the barrier
+        space goes back to the track's pool, empty."""
+        if self._space is not None:
+            _give_back(self._pool, self._lease, self._bodies, self._shapes, self._member)
+            self._space, self._mat_bodies = None, []
         self._member[:] = False
         self._idle[:] = 0
         self._wall_cache[:, 3] = -1.0
         self._meta[:2] = 0
-        self._refresh_slots()
+        self._slots = np.zeros(0, dtype=np.int64)
 
     def wall_segments(self) -> np.ndarray:
         """(S, 4) the static wall segments pymunk collides with: x0, y0, x1, y1 (m)."""
-        segs = [sh for sh in self._space.shapes if isinstance(sh, pymunk.Segment)]
+        held = (self._space, self._mat_bodies) if self._space is not None else self._pool.take()
+        segs = [sh for sh in held[0].shapes if isinstance(sh, pymunk.Segment)]
+        if held[0] is not self._space:
+            self._pool.put(*held)
         return np.array([(sh.a.x, sh.a.y, sh.b.x, sh.b.y) for sh in segs]).reshape(-1, 4)
 
     @property
@@ -305,6 +324,8 @@ class ContactSolver:
     def _consult(self, x, y, yaw, vx, vy, w, piece, dt) -> ContactReport:
         self._counts["consults"] += 1
         n = self.n_cars
+        if self._space is None:
+            self._take_space()
         self._sync_members()
         wall = np.zeros(n, dtype=bool)
         car = np.zeros(n, dtype=bool)
@@ -329,6 +350,17 @@ class ContactSolver:
                         self._travel, self._pair_out, count)
         pairs = sorted(map(tuple, self._pair_out[:count].tolist()))
         return ContactReport(wall=wall, car=car, damage=damage, pairs=pairs)
+
+    def _take_space(self) -> None:
+        """Hold a barrier space from the track's pool (built if none is free) until reset()."""
+        self._space, self._mat_bodies = self._lease[0] = self._pool.take()
+        n = self.n_cars
+        keys = np.array([b.id for b in self._bodies] + [b.id for b in self._mat_bodies], dtype=np.int64)
+        codes = np.concatenate([np.arange(n), -1 - np.arange(len(self._mat_bodies))]).astype(np.int64)
+        order = np.argsort(keys, kind="stable")
+        self._id_keys, self._id_codes = keys[order], codes[order]
+        self._code_of = dict(zip(keys.tolist(), codes.tolist()))
+        self._refresh_slots()
 
     def _sync_members(self) -> None:
         """Add flagged cars to the pymunk space; drop cars idle for IDLE_CALLS consultations."""
@@ -418,6 +450,42 @@ def _wall_space(track):
     mat_ids = sorted(bodies)
     space.add(*[bodies[m] for m in mat_ids], *shapes)
     return space, [bodies[m] for m in mat_ids], mat_ids
+
+
+class _SpacePool:
+    """The free barrier spaces of one track (`_wall_space` results), all built the same way."""
+
+    def __init__(self, track):
+        self._track = weakref.ref(track)
+        self.free: list = []
+        space, bodies, self.mat_ids = _wall_space(track)
+        self.free.append((space, bodies))
+
+    def keep_one_free(self) -> None:
+        if not self.free:
+            self.free.append(_wall_space(self._track())[:2])
+
+    def take(self) -> tuple:
+        """(space, material bodies): a free one, or a new one."""
+        try:
+            return self.free.pop()
+        except IndexError:
+            return _wall_space(self._track())[:2]
+
+    def put(self, space, bodies) -> None:
+        self.free.append((space, bodies))
+
+
+def _give_back(pool: _SpacePool, lease: list, bodies, shapes, member) -> None:
+    """Remove a solver's cars from its held space and return the space to the pool."""
+    held, lease[0] = lease[0], None
+    if held is None:
+        return
+    space = held[0]
+    for i in np.flatnonzero(member):
+        space.remove(bodies[i], shapes[i])
+    member[:] = False
+    pool.put(*held)
 
 
 def _material_table(track, mat_ids, wall_friction, rebound) -> np.ndarray:
