@@ -1,9 +1,9 @@
 """Tracks: TORCS track XML -> immutable, sampled `Track` with vectorised queries."""
 
 from madsim.tracks.build import Surface
+from madsim.tracks.errors import TrackError
 from madsim.tracks.library import (
     DEFAULT_TRACK,
-    TrackError,
     find_track,
     list_tracks,
     load_track,

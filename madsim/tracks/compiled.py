@@ -17,7 +17,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from madsim.tracks.build import COL, KIND_NAMES, PIECE_COLUMNS, STRAIGHT, STYLE_FENCE, BuildResult, Surface
-from madsim.tracks.library import TrackError
+from madsim.tracks.errors import TrackError
 from madsim.tracks.track import Track, translate_pieces
 
 FORMAT = "madsim-track"

@@ -7,22 +7,13 @@ from pathlib import Path
 
 from madsim.torcsxml import ParamsError, read_params
 from madsim.tracks.build import BuildError, build_pieces
+from madsim.tracks.errors import TrackError
 from madsim.tracks.track import Track
 
 BUNDLED_DIR = Path(__file__).resolve().parent.parent / "assets" / "tracks"
 DEFAULT_TRACK = "madsim-road"
 CATEGORIES = ("road", "oval", "dirt")
 COMPILED_SUFFIX = ".mtrack"
-
-
-class TrackError(ValueError):
-    """A track cannot be found or read; names the file and the element at fault."""
-
-    def __init__(self, message: str, *, file: str | None = None, element: str | None = None):
-        self.file = file
-        self.element = element
-        where = ", ".join(p for p in (file, element and f"at {element}") if p)
-        super().__init__(f"{where}: {message}" if where else message)
 
 
 def torcs_data_dirs() -> list[Path]:
