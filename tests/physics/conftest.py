@@ -14,6 +14,18 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 
+@pytest.fixture(scope="module")
+def road():
+    """madsim-road, loaded once per test module."""
+    return load_track("madsim-road")
+
+
+@pytest.fixture(scope="module")
+def sedan():
+    """The bundled madsim-sedan as it ships."""
+    return load_car("madsim-sedan")
+
+
 @pytest.fixture
 def need_torcs():
     if not torcs_installed():
@@ -50,7 +62,7 @@ def straight(make_track):
     return _straight
 
 
-def sedan(**changes):
+def sedan_without_lift(**changes):
     """The bundled sedan without body lift (so wheel loads are m g exactly), with changes."""
     car = load_car("madsim-sedan")
     return dataclasses.replace(car, clift=np.zeros(2), **changes)
@@ -74,4 +86,4 @@ def hold_line(world, target_n=0.0, gain=0.5):
 def ph():
     """Helpers for physics tests: ph.sedan(**changes), ph.world_at(track, car, ...), ph.hold_line(world)."""
     import types
-    return types.SimpleNamespace(sedan=sedan, world_at=world_at, hold_line=hold_line)
+    return types.SimpleNamespace(sedan=sedan_without_lift, world_at=world_at, hold_line=hold_line)

@@ -8,20 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from madsim.cars import load_car
 from madsim.physics import SensorSuite, TorcsClock, World, make_clock
 from madsim.physics.schedule import FixedClock
-from madsim.tracks import load_track
-
-
-@pytest.fixture(scope="module")
-def road():
-    return load_track("madsim-road")
-
-
-@pytest.fixture(scope="module")
-def sedan():
-    return load_car("madsim-sedan")
 
 
 def make(track, cars):

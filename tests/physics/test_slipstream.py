@@ -8,20 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from madsim.cars import load_car
 from madsim.physics import World
 from madsim.physics import layout as L
-from madsim.tracks import load_track
-
-
-@pytest.fixture(scope="module")
-def road():
-    return load_track("madsim-road")
-
-
-@pytest.fixture(scope="module")
-def sedan():
-    return load_car("madsim-sedan")
 
 
 def cd(car):

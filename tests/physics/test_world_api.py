@@ -5,20 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from madsim.cars import load_car
 from madsim.physics import layout as L
 from madsim.physics.world import World
 from madsim.tracks import load_track
-
-
-@pytest.fixture(scope="module")
-def road():
-    return load_track("madsim-road")
-
-
-@pytest.fixture(scope="module")
-def sedan():
-    return load_car("madsim-sedan")
 
 
 def make(track, cars, **kw):
