@@ -29,7 +29,7 @@ def _summary(obj) -> str:
 def _type_name(tp) -> str:
     text = str(tp) if not isinstance(tp, type) else tp.__name__
     return (text.replace("typing.", "").replace("NoneType", "None").replace("<class '", "")
-            .replace("'>", "").replace("madsim.envs.config.", ""))
+            .replace("'>", "").replace("madsim.envs.schema.", ""))
 
 
 def _default(f: dataclasses.Field) -> str:
@@ -81,7 +81,7 @@ def config_reference() -> str:
            "checked, so the rewards, dones and traffic behaviours they register can be used in it "
            "(`madsim run`, `train` and `config check` also take `--import MODULE`).",
            ""]
-    sections = [("`server`", C.ServerConfig), ("`agents[i]`", C.AgentConfig),
+    sections = [("`server`", C.EpisodeConfig), ("`agents[i]`", C.AgentConfig),
                 ("`agents[i].action`", C.ActionConfig), ("`agents[i].pid` (also `traffic[j].pid`)", C.PidConfig),
                 ("`agents[i].observation`", C.ObservationConfig),
                 ("`agents[i].communication`", C.CommConfig),

@@ -19,7 +19,7 @@ def test_reference_is_up_to_date(name):
 def test_references_cover_the_schema_and_the_commands():
     docs = generate()
     from madsim.envs import config as C
-    for cls in (C.ServerConfig, C.AgentConfig, C.TrafficConfig):
+    for cls in (C.EpisodeConfig, C.AgentConfig, C.TrafficConfig):
         for f in cls.__dataclass_fields__:
             assert f"`{f}`" in docs["configuration.md"], f
     for command in ("madsim tracks list", "madsim serve", "madsim config check", "madsim convert track"):

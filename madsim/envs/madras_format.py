@@ -1,8 +1,9 @@
 """MADRaS's own configuration files read into madsim's schema.
 
 `madras_config.yml` (MADRaS master) and `sim_options_v2.yml` + `communications.yml` (devel) load
-unchanged: their keys, including the misspelt ones, map onto `madsim.envs.config`'s dataclasses;
-TORCS-only keys are accepted with a ConfigWarning. Used by `load_config`, which detects the format.
+unchanged: their keys, including the misspelt ones, map onto the dataclasses of
+`madsim.envs.schema`; TORCS-only keys are accepted with a ConfigWarning. Used by `load_config`
+(madsim.envs.loader), which detects the format with `looks_madras`.
 """
 
 from __future__ import annotations
@@ -14,15 +15,10 @@ from typing import Any
 
 from madsim.agents.comms import COMM_VARIABLES
 from madsim.agents.rewards import TICK_S
-from madsim.envs.config import (
-    _OURS,
-    AgentConfig,
-    ConfigError,
-    _fail,
-    _join,
-    _number,
-    _unknown,
-)
+from madsim.envs.schema import SECTIONS, AgentConfig
+from madsim.envs.validation import ConfigError, as_number, fail, join_key, unknown_name
+
+__all__ = ["MadrasTranslation", "looks_madras"]
 
 # --- tables ----------------------------------------------------------------------
 
@@ -70,8 +66,9 @@ _MADRAS_TRAFFIC_IGNORED = ("vision", "throttle", "gear_change", "visualise", "cl
                            "track_len")
 
 
-def _looks_madras(raw: Mapping) -> bool:
-    if set(raw) - set(_OURS):
+def looks_madras(raw: Mapping) -> bool:
+    """Whether a scenario mapping is in MADRaS's format (master or devel), by its keys."""
+    if set(raw) - set(SECTIONS):
         return bool(set(raw) & (set(_MADRAS_M1) | set(_MADRAS_M2)))
     agent_keys = {f.name for f in fields(AgentConfig)}
     entries = [e for section in ("agents", "traffic") for e in (raw.get(section) or [])
@@ -81,7 +78,7 @@ def _looks_madras(raw: Mapping) -> bool:
                for e in entries)
 
 
-class _Madras:
+class MadrasTranslation:
     """Translate a MADRaS config (master or devel) into madsim's format, remembering for every
     translated key where it came from so errors name the key as written in the file."""
 
@@ -91,6 +88,10 @@ class _Madras:
         self.comm_keys: list[str] = []        # translated keys that come from the comms file
         self.ignored: list[str] = []
         self.notes: list[str] = []
+
+    def source_hint(self, hint: str | None) -> str | None:
+        """A hint (a madsim key) as the MADRaS key a user would write instead."""
+        return _MADRAS_HINTS.get(hint, hint)
 
     def from_comms(self, key: str | None) -> bool:
         return bool(key) and any(key == k or key.startswith(k + ".") for k in self.comm_keys)
@@ -105,27 +106,27 @@ class _Madras:
 
     def put(self, dst: dict, name: str, value, ours: str, src: str) -> None:
         dst[name] = value
-        self.origin[_join(ours, name)] = src
+        self.origin[join_key(ours, name)] = src
 
     @staticmethod
     def mapping(value, src: str) -> Mapping:
         if value is None:
             return {}
         if not isinstance(value, Mapping):
-            _fail(src, "expected a mapping", value)
+            fail(src, "expected a mapping", value)
         return value
 
     @staticmethod
     def flag(value, src: str) -> bool:
         if not isinstance(value, bool):
-            _fail(src, "expected true or false", value)
+            fail(src, "expected true or false", value)
         return value
 
     @staticmethod
     def check_keys(src_map: Mapping, allowed, prefix: str) -> None:
         for k in src_map:
             if k not in allowed:
-                raise _unknown("key", k, allowed, _join(prefix, str(k)))
+                raise unknown_name("key", k, allowed, join_key(prefix, str(k)))
 
     def translate(self, raw: Mapping, comms: Mapping | None) -> dict:
         devel = "agents" in raw
@@ -134,14 +135,14 @@ class _Madras:
             if k in _MADRAS_IGNORED:
                 self.ignored.append(k)
         if "vision" in raw and self.flag(raw["vision"], "vision"):
-            _fail("vision", "vision input is not supported by madsim", True)
+            fail("vision", "vision input is not supported by madsim", True)
         if devel:
             if not isinstance(raw["agents"], list) or not raw["agents"]:
-                _fail("agents", "expected a list of `- MadrasAgent: {...}` entries", raw["agents"])
+                fail("agents", "expected a list of `- MadrasAgent: {...}` entries", raw["agents"])
             sources = []
             for i, entry in enumerate(raw["agents"]):
                 if not isinstance(entry, Mapping) or len(entry) != 1:
-                    _fail(f"agents[{i}]", "expected one `<AgentClass>: {settings}` entry", entry)
+                    fail(f"agents[{i}]", "expected one `<AgentClass>: {settings}` entry", entry)
                 (cls_name, settings), = entry.items()
                 sources.append((f"{cls_name}_{i}", self.mapping(settings, f"agents[{i}].{cls_name}"),
                                 f"agents[{i}].{cls_name}"))
@@ -149,7 +150,7 @@ class _Madras:
             sources = [("MadrasAgent_0", {k: v for k, v in raw.items() if k in _MADRAS_AGENT}, "")]
         traffic_raw = raw.get("traffic") or []
         if not isinstance(traffic_raw, list):
-            _fail("traffic", "expected a list of `- <TrafficClass>: {...}` entries", traffic_raw)
+            fail("traffic", "expected a list of `- <TrafficClass>: {...}` entries", traffic_raw)
         server, cars = self.server(raw, len(sources), len(traffic_raw))
         agents = []
         for i, (name, settings, src) in enumerate(sources):
@@ -182,7 +183,7 @@ class _Madras:
         if "track_names" in sc:
             tracks = sc["track_names"]
             if not isinstance(tracks, list) or not tracks:
-                _fail("server_config.track_names", "expected a list of track names", tracks)
+                fail("server_config.track_names", "expected a list of track names", tracks)
             self.put(out, "tracks", tracks if randomize else tracks[:1], "server",
                      "server_config.track_names")
         cars = None
@@ -190,12 +191,12 @@ class _Madras:
             lc = sc["learning_car"]
             lc = [lc] if isinstance(lc, str) else lc
             if not isinstance(lc, list) or not lc:
-                _fail("server_config.learning_car", "expected a list of car names", lc)
+                fail("server_config.learning_car", "expected a list of car names", lc)
             if randomize:
                 self.put(out, "cars", lc, "server", "server_config.learning_car")
             elif len(lc) < n_agents:
-                _fail("server_config.learning_car", f"needs one car per learning agent "
-                      f"({n_agents}) when randomize_env is false", lc)
+                fail("server_config.learning_car", f"needs one car per learning agent "
+                     f"({n_agents}) when randomize_env is false", lc)
             else:
                 cars = lc[:n_agents]
         for ours, theirs in (("traffic_car", "traffic_car"), ("distance_to_start", "distance_to_start")):
@@ -204,11 +205,11 @@ class _Madras:
         max_cars, min_traffic = sc.get("max_cars", 10), sc.get("min_traffic_cars", 0)
         for k, v in (("max_cars", max_cars), ("min_traffic_cars", min_traffic)):
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                _fail(f"server_config.{k}", "expected a whole number >= 0", v)
+                fail(f"server_config.{k}", "expected a whole number >= 0", v)
         high = max_cars - n_agents
         if high < 0:
-            _fail("server_config.max_cars", f"is below the number of learning agents ({n_agents})",
-                  max_cars)
+            fail("server_config.max_cars", f"is below the number of learning agents ({n_agents})",
+                 max_cars)
         if high > n_traffic:
             self.notes.append(f"server_config.max_cars = {max_cars} leaves room for {high} "
                               f"traffic cars but `traffic` lists {n_traffic}; using at most "
@@ -216,8 +217,8 @@ class _Madras:
             high = n_traffic
         low = min(min_traffic, high) if randomize else high
         if randomize and min_traffic > max_cars - n_agents:
-            _fail("server_config.min_traffic_cars", f"exceeds max_cars - learning agents "
-                  f"({max_cars - n_agents})", min_traffic)
+            fail("server_config.min_traffic_cars", f"exceeds max_cars - learning agents "
+                 f"({max_cars - n_agents})", min_traffic)
         self.put(out, "traffic_count", [low, high], "server", "server_config.max_cars")
         if "max_steps" in raw:
             self.put(out, "max_steps", raw["max_steps"] or None, "server", "max_steps")
@@ -237,7 +238,7 @@ class _Madras:
             self.put(out, "car", car, op, "server_config.learning_car")
         action: dict[str, Any] = {}
         for k, v in src.items():
-            s = _join(sp, k)
+            s = join_key(sp, k)
             if k == "pid_assist":
                 self.put(action, "space", "TS" if self.flag(v, s) else "SAB", f"{op}.action", s)
             elif k == "normalize_actions":
@@ -247,9 +248,9 @@ class _Madras:
             elif k == "gear_change":
                 self.put(out, "gear", "manual" if self.flag(v, s) else "auto", op, s)
             elif k == "vision" and self.flag(v, s):
-                _fail(s, "vision input is not supported by madsim", v)
+                fail(s, "vision input is not supported by madsim", v)
             elif k == "throttle" and not self.flag(v, s):
-                _fail(s, "throttle control cannot be turned off (MADRaS requires true too)", v)
+                fail(s, "throttle control cannot be turned off (MADRaS requires true too)", v)
             elif k == "pid_settings":
                 self.put(out, "pid", self.renamed(v, s, _MADRAS_PID, f"{op}.pid"), op, s)
             elif k == "observations":
@@ -261,10 +262,10 @@ class _Madras:
                 self.ignored.append(s)
         if action:
             out["action"] = action
-        add = self.flag(src.get("add_noise_to_actions", False), _join(sp, "add_noise_to_actions"))
+        add = self.flag(src.get("add_noise_to_actions", False), join_key(sp, "add_noise_to_actions"))
         std = src.get("action_noise_std", 0.001)         # MADRaS's default sigma
         self.put(out, "action_noise_std", std if add else 0.0, op,
-                 _join(sp, "action_noise_std" if "action_noise_std" in src else "add_noise_to_actions"))
+                 join_key(sp, "action_noise_std" if "action_noise_std" in src else "add_noise_to_actions"))
         return out
 
     def renamed(self, value, src: str, table: Mapping[str, str], ours: str) -> dict:
@@ -273,9 +274,9 @@ class _Madras:
         out = {}
         for k, v in value.items():
             if k in table:
-                self.put(out, table[k], v, ours, _join(src, k))
+                self.put(out, table[k], v, ours, join_key(src, k))
             else:
-                self.ignored.append(_join(src, k))
+                self.ignored.append(join_key(src, k))
         return out
 
     def observations(self, value, src: str, ours: str, agent: dict) -> dict:
@@ -283,18 +284,18 @@ class _Madras:
         extra = {k: v for k, v in value.items() if k in ("buff_size", "multi_flag")}
         out = self.renamed({k: v for k, v in value.items() if k not in extra}, src, _MADRAS_OBS, ours)
         if "multi_flag" in extra:
-            self.ignored.append(_join(src, "multi_flag"))
+            self.ignored.append(join_key(src, "multi_flag"))
         if "buff_size" in extra:
-            agent["_buff_size"] = (extra["buff_size"], _join(src, "buff_size"))
+            agent["_buff_size"] = (extra["buff_size"], join_key(src, "buff_size"))
         return out
 
     def traffic(self, entry, src: str) -> dict:
         if not isinstance(entry, Mapping) or len(entry) != 1:
-            _fail(src, "expected one `<TrafficClass>: {settings}` entry", entry)
+            fail(src, "expected one `<TrafficClass>: {settings}` entry", entry)
         (cls_name, settings), = entry.items()
         src = f"{src}.{cls_name}"
         if cls_name not in _MADRAS_TRAFFIC:
-            raise _unknown("traffic class", cls_name, _MADRAS_TRAFFIC, src)
+            raise unknown_name("traffic class", cls_name, _MADRAS_TRAFFIC, src)
         behaviour = _MADRAS_TRAFFIC[cls_name]
         ours = src.split(".")[0]
         out: dict[str, Any] = {"behaviour": behaviour}
@@ -303,18 +304,18 @@ class _Madras:
         allowed = [*_MADRAS_TRAFFIC_KEYS, "pid_settings", *_MADRAS_TRAFFIC_IGNORED]
         self.check_keys(settings, allowed, src)
         for k, v in settings.items():
-            s = _join(src, k)
+            s = join_key(src, k)
             if k in _MADRAS_TRAFFIC_IGNORED:
                 self.ignored.append(s)
             elif k == "pid_settings":
                 self.put(out, "pid", self.renamed(v, s, _MADRAS_PID, f"{ours}.pid"), ours, s)
             else:
                 name, factor = _MADRAS_TRAFFIC_KEYS[k]
-                self.put(out, name, v if factor is None else _number(v, s) * factor, ours, s)
+                self.put(out, name, v if factor is None else as_number(v, s) * factor, ours, s)
         if behaviour == "SinusoidalSpeed" and "speed_amplitude" in out:
             # MADRaS oscillated around 0 km/h (spec 11, item 18); madsim around a mean speed,
             # here the amplitude, so the car varies between standstill and twice the amplitude.
-            self.put(out, "mean_speed", out["speed_amplitude"], ours, _join(src, "speed_amplitude"))
+            self.put(out, "mean_speed", out["speed_amplitude"], ours, join_key(src, "speed_amplitude"))
         return out
 
     def communications(self, comms: Mapping, agents: list[dict]) -> None:
@@ -331,10 +332,10 @@ class _Madras:
             variables = entry.get("vars") or []
             for key, value in (("comms", senders), ("vars", variables)):
                 if not isinstance(value, list):
-                    _fail(f"{receiver}.{key}", "expected a list", value)
+                    fail(f"{receiver}.{key}", "expected a list", value)
             for i, var in enumerate(variables):
                 if var not in COMM_VARIABLES:
-                    raise _unknown("variable", var, COMM_VARIABLES, f"{receiver}.vars[{i}]")
+                    raise unknown_name("variable", var, COMM_VARIABLES, f"{receiver}.vars[{i}]")
             kept = [s for s in senders if s in by_name]
             if len(kept) != len(senders):
                 self.notes.append(f"communications: {receiver} hears unknown agent(s) "
@@ -342,7 +343,7 @@ class _Madras:
             agent = by_name[receiver]
             length = entry.get("buff_size", 1)
             if isinstance(length, bool) or not isinstance(length, int) or length < 1:
-                _fail(f"{receiver}.buff_size", "expected a whole number >= 1", length)
+                fail(f"{receiver}.buff_size", "expected a whole number >= 1", length)
             if "_buff_size" in agent:
                 obs_length = agent["_buff_size"][0]
                 if "buff_size" in entry and obs_length != length:
