@@ -81,7 +81,8 @@ def config_reference() -> str:
            "checked, so the rewards, dones and traffic behaviours they register can be used in it "
            "(`madsim run`, `train` and `config check` also take `--import MODULE`).",
            ""]
-    sections = [("`server`", C.EpisodeConfig), ("`agents[i]`", C.AgentConfig),
+    sections = [("`server`", C.EpisodeConfig), ("`server.grid`", C.GridConfig),
+                ("`agents[i]`", C.AgentConfig),
                 ("`agents[i].action`", C.ActionConfig), ("`agents[i].pid` (also `traffic[j].pid`)", C.PidConfig),
                 ("`agents[i].observation`", C.ObservationConfig),
                 ("`agents[i].communication`", C.CommConfig),

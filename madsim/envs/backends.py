@@ -3,13 +3,16 @@
 A backend runs one episode at a time for the env; cars are addressed by row (traffic first,
 then learners, see `madsim.envs.episode`). The contract:
 
-    frame = backend.start(key, track, cars, placements, noisy=..., rng=...)  # first sensors
+    frame = backend.start(key, track, cars, placements, noisy=..., rng=...,
+                          tick_schedule=...)                        # first sensors
     frame = backend.step(controls)      # controls (N, 5): steer, accel, brake, gear, clutch
     hits = backend.collisions()         # (N,) bool: contact during the last tick, or None
 
 Frames are `madsim.physics.sensors.SensorFrame`s (SCR units, one row per car); `step`
 returns None when the simulator ended the race on its own. `check(cfg)` refuses, at env
-construction, a scenario the backend cannot run.
+construction, a scenario the backend cannot run. `tick_schedule` (server.tick_schedule) says
+how far one `step` advances: "fixed" 0.02 s, "torcs" TORCS's 0.02-or-0.022 s driver calls
+counted from `start` (`madsim.physics.schedule`).
 
 Rangefinders point at MADRaS's angles (its snakeoil client's list, +-45 degrees, dense around
 the heading): `RANGEFINDER_ANGLES_DEG`.
@@ -23,6 +26,7 @@ import numpy as np
 
 from madsim.envs.config import ConfigError, ScenarioConfig
 from madsim.net.protocol import SNAKEOIL_ANGLES_DEG
+from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import (
     N_VALUES,
     SENSOR_OFFSETS,
@@ -57,13 +61,14 @@ class LocalBackend:
         self._worlds: OrderedDict = OrderedDict()
         self.world = None
         self.suite = None
+        self.clock = None          # None: fixed 0.02 s ticks; else the episode's TorcsClock
         self.worlds_built = 0
 
     def check(self, cfg: ScenarioConfig) -> None:
         """Everything a config can ask for runs locally."""
 
     def start(self, key, track, cars, placements, *, noisy: bool,
-              rng: np.random.Generator) -> SensorFrame:
+              rng: np.random.Generator, tick_schedule: str = "fixed") -> SensorFrame:
         from madsim.physics.world import World
 
         pair = self._worlds.pop(key, None)
@@ -83,10 +88,14 @@ class LocalBackend:
         self.suite.reset()
         self.suite.noisy = bool(noisy)
         self.suite.rng = rng
+        self.clock = None if tick_schedule == "fixed" else make_clock(tick_schedule)
         return self.suite.frame()
 
     def step(self, controls: np.ndarray) -> SensorFrame:
-        self.world.step(controls)
+        if self.clock is None:
+            self.world.step(controls)
+        else:
+            self.world.step(controls, self.clock.substeps())
         return self.suite.frame()
 
     def collisions(self) -> np.ndarray:
@@ -146,9 +155,16 @@ class ScrBackend:
                         raise ConfigError("ScrBackend cannot place cars (the server uses "
                                           "its grid)", key=f"{where}[{i}].{name}",
                                           value=list(getattr(e, name)))
+        if s.grid is not None:
+            raise ConfigError("ScrBackend cannot place cars: give the grid to the server "
+                              "(madsim serve --grid)", key="server.grid")
+        if s.tick_schedule != "fixed":
+            raise ConfigError("ScrBackend runs on the server's clock: start the server with "
+                              "--tick-schedule instead", key="server.tick_schedule",
+                              value=s.tick_schedule)
 
     def start(self, key, track, cars, placements, *, noisy: bool,
-              rng: np.random.Generator) -> SensorFrame:
+              rng: np.random.Generator, tick_schedule: str = "fixed") -> SensorFrame:
         from madsim.net.client import ScrClient
 
         n = len(cars)

@@ -300,7 +300,8 @@ class MadrasCore:
         where = placements(cfg, plan, track, scenario_rng)
         frame = self.backend.start((plan.track, plan.cars), track, cars, where,
                                    noisy=cfg.server.observation_noise,
-                                   rng=np.random.default_rng(obs_ss))
+                                   rng=np.random.default_rng(obs_ss),
+                                   tick_schedule=cfg.server.tick_schedule)
         self.frame = frame
         self.controls = np.zeros((len(plan.cars), 5))
         self.agent_rows = {name: plan.row(name) for name in plan.agents}

@@ -17,7 +17,8 @@ seed). Draws, in this order from the one generator:
 Row order is MADRaS's slot order: traffic cars take rows (and grid slots) 0..n-1, learning
 agents follow in config order, so traffic starts ahead on the grid. The grid is TORCS's quick
 race grid (`madsim.physics.tables.grid_positions`); `server.distance_to_start` applies unless
-the track's own grid sets it (the track wins, as in TORCS).
+the track's own grid sets it (the track wins, as in TORCS). `server.grid` gives the race's own
+grid values instead, as a TORCS race file (and `madsim serve --grid`) does.
 """
 
 from __future__ import annotations
@@ -104,10 +105,14 @@ def placements(cfg: ScenarioConfig, plan: EpisodePlan, track: Track,
     ranges += [(agents[name].initial_distance, agents[name].initial_trackpos)
                for name in plan.agents]
     n_cars = len(ranges)
-    s, n = grid_positions(track, n_cars)
-    if "distance to start" not in track.grid:
-        s = np.mod(s + (QUICKRACE_GRID["distance to start"] - cfg.server.distance_to_start),
-                   track.length)
+    grid = cfg.server.grid
+    if grid is not None:                 # where `madsim serve --grid` puts them
+        s, n = grid_positions(track, n_cars, grid.race_grid(cfg.server.distance_to_start))
+    else:
+        s, n = grid_positions(track, n_cars)
+        if "distance to start" not in track.grid:
+            s = np.mod(s + (QUICKRACE_GRID["distance to start"] - cfg.server.distance_to_start),
+                       track.length)
     out = np.zeros((n_cars, 3))
     out[:, 0], out[:, 1] = s, n
     half_width = track.width / 2.0

@@ -22,6 +22,8 @@ from madsim.agents.dones import DONES
 from madsim.agents.observations import OBSERVATION_MODES, SCR_FIELDS
 from madsim.agents.pid import MADRAS_ACCEL_GAINS, MADRAS_STEER_GAINS
 from madsim.agents.rewards import REWARD_ALIASES, REWARDS, make_reward, reward_params
+from madsim.physics.schedule import SCHEDULES as TICK_SCHEDULES
+from madsim.physics.tables import QUICKRACE_GRID
 from madsim.envs.validation import (
     ConfigError,
     as_number,
@@ -48,6 +50,7 @@ __all__ = [
     "CommConfig",
     "CurriculumConfig",
     "EpisodeConfig",
+    "GridConfig",
     "ObservationConfig",
     "PidConfig",
     "RewardTerm",
@@ -59,6 +62,7 @@ __all__ = [
 
 DEFAULT_TRACK = "madsim-road"
 DEFAULT_CAR = "madsim-sedan"
+QUICKRACE_DISTANCE_TO_START_M = QUICKRACE_GRID["distance to start"]
 
 
 def _on_road(entry) -> None:
@@ -88,6 +92,38 @@ def generated_track_args(entry: str) -> dict | None:
 
 
 @dataclass(frozen=True, kw_only=True)
+class GridConfig:
+    """The race's starting grid as a TORCS race file gives it (its `Starting Grid` section; the
+    values `madsim serve --grid` takes, same names with `_` for spaces), m. A value left out
+    keeps TORCS's quickrace grid (2 rows, 25 m to the start line, columns 20 m apart, 10 m
+    offset within a column); the track's own grid overrides all of them, as in TORCS. Cars
+    take the slots in row order (traffic first, then the learners). The lateral position
+    follows from `rows` as in TORCS: 1 row puts every car on the centre line; one car's own
+    lateral start is `initial_trackpos: [p, p]`. E.g. {rows: 1, distance_to_start: 100} is the
+    start of the real-TORCS traces."""
+
+    rows: int | None = None
+    distance_to_start: float | None = None
+    distance_between_columns: float | None = None
+    offset_within_a_column: float | None = None
+
+    def __post_init__(self):
+        check_positive(self, "rows")
+        check_positive(self, "distance_to_start", "distance_between_columns",
+                       "offset_within_a_column", allow_zero=True)
+
+    def race_grid(self, distance_to_start: float) -> dict[str, float]:
+        """The values under their TORCS names (`World.reset(grid=...)`); `distance_to_start`
+        (server.distance_to_start) where this grid does not set it."""
+        out = {"distance to start": float(distance_to_start)}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is not None:
+                out[f.name.replace("_", " ")] = float(value)
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
 class EpisodeConfig:
     """What every episode draws from (MADRaS `server_config` and env-level keys).
 
@@ -96,7 +132,15 @@ class EpisodeConfig:
     fixed `car`), traffic count = min + k mod (max - min + 1); order "random": uniform draws
     from the episode's rng (categorical track and car, discrete-uniform count; paper App. C).
     traffic_count None means every traffic entry, every episode. max_steps counts 0.02 s ticks
-    (None: ceil(L / (target_speed * 0.02 s)), one lap at the target speed)."""
+    (None: ceil(L / (target_speed * 0.02 s)), one lap at the target speed).
+
+    tick_schedule: when the agents act. "fixed" (the default): every 0.02 s of simulated time.
+    "torcs": on real TORCS's own driver-call schedule, 0.02 or 0.022 s apart
+    (`madsim.physics.schedule.TorcsClock`, as `madsim serve --tick-schedule torcs`), tick for
+    tick from each reset, so a real-TORCS trace can be replayed; ticks are still counted as
+    0.02 s where time is derived from them (max_steps, AvgSpeed, traffic's clock).
+    grid: the starting grid (`GridConfig`); None: TORCS's quickrace grid with distance_to_start
+    (grid.distance_to_start, when given, replaces distance_to_start)."""
 
     tracks: tuple[str, ...] = (DEFAULT_TRACK,)
     cars: tuple[str, ...] = (DEFAULT_CAR,)
@@ -106,9 +150,11 @@ class EpisodeConfig:
     observation_noise: bool = False
     max_steps: int | None = 20000
     track_limits: tuple[float, float] = (-1.0, 1.0)
-    distance_to_start: float = 25.0
+    distance_to_start: float = QUICKRACE_DISTANCE_TO_START_M
     laps: int = 1
     init_wait: int = 0
+    tick_schedule: str = "fixed"
+    grid: GridConfig | None = None
 
     def __post_init__(self):
         for name in ("tracks", "cars"):
@@ -129,10 +175,15 @@ class EpisodeConfig:
             if low < 0 or low > high:
                 fail("traffic_count", "needs 0 <= min <= max", list(self.traffic_count))
         check_choice(self, "order", ("fixed", "random"))
+        check_choice(self, "tick_schedule", TICK_SCHEDULES)
         check_positive(self, "max_steps", "laps")
         check_positive(self, "distance_to_start", "init_wait", allow_zero=True)
         if not self.track_limits[0] < self.track_limits[1]:
             fail("track_limits", "low must be < high", list(self.track_limits))
+        if (self.grid is not None and self.grid.distance_to_start is not None
+                and self.distance_to_start != QUICKRACE_DISTANCE_TO_START_M):
+            fail("grid.distance_to_start", "also given as distance_to_start: give one",
+                 self.grid.distance_to_start)
 
 
 @dataclass(frozen=True, kw_only=True)

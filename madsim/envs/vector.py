@@ -44,6 +44,7 @@ from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_c
 from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
 from madsim.physics.batch import WorldBatch
+from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import (
     O_SX,
 )
@@ -178,6 +179,8 @@ class MadrasVectorEnv(VectorEnv):
                                 threads=threads, focus=needs_focus,
                                 angles_deg=RANGEFINDER_ANGLES_DEG)
         self.assets = AssetCache()
+        schedule = cfg.server.tick_schedule         # per episode its own clock, from its reset
+        self._clocks = None if schedule == "fixed" else [make_clock(schedule) for _ in range(n)]
 
         # per episode
         self._np_random: list = [None] * n         # each episode's gymnasium Env.np_random
@@ -268,7 +271,7 @@ class MadrasVectorEnv(VectorEnv):
             batch.controls[rows, :3] = _STOP
             batch.controls[rows, 3] = speed_gear_many(batch.sensors[rows, O_SX])
             self._traffic_controls(slots)
-            batch.step(mask)
+            self._tick(mask)
         infos: dict = {}
         for e, info in zip(slots.tolist(), started):
             st = self._stages[self._stage_of[e]]
@@ -296,6 +299,8 @@ class MadrasVectorEnv(VectorEnv):
         where = placements(cfg, plan, track, scenario_rng)
         self.batch.start(e, (plan.track, plan.cars), track, cars, where,
                          noisy=cfg.server.observation_noise, rng=np.random.default_rng(obs_ss))
+        if self._clocks is not None:
+            self._clocks[e].reset()
         k = plan.row(self.agent)
         self._row[e] = self.batch.offsets[e] + k
         self._length[e] = track.length
@@ -316,6 +321,19 @@ class MadrasVectorEnv(VectorEnv):
                 "traffic": tuple(t.behaviour for t in plan.traffic),
                 "traffic_count": plan.n_traffic, "car": plan.agent_cars[0], "row": k,
                 "placement": (float(where[k, 0]), float(where[k, 1]))}
+
+    def _tick(self, mask: np.ndarray) -> None:
+        """One tick of the episodes in `mask`: 0.02 s, or each episode's next TORCS driver call
+        (10 or 11 sub-steps; one batch call per length)."""
+        if self._clocks is None:
+            self.batch.step(mask)
+            return
+        slots = np.flatnonzero(mask)
+        substeps = np.array([self._clocks[e].substeps() for e in slots.tolist()])
+        for k in np.unique(substeps).tolist():
+            part = np.zeros_like(mask)
+            part[slots[substeps == k]] = True
+            self.batch.step(part, k)
 
     def _traffic_controls(self, slots) -> None:
         """Controls of the traffic cars of episodes `slots`, one fleet call."""
@@ -400,7 +418,7 @@ class MadrasVectorEnv(VectorEnv):
                 self._traffic_controls(run)
             mask[:] = False
             mask[run] = True
-            batch.step(mask)
+            self._tick(mask)
             cur = flat[rows]
             length = self._length[run]
             collision = hits[rows]

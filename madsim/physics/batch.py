@@ -390,10 +390,14 @@ class WorldBatch:
 
     # --- the tick ------------------------------------------------------------------------------
 
-    def step(self, mask: np.ndarray) -> None:
-        """Advance the slots where `mask` (n_slots,) is True by 0.02 s with their `controls`
-        rows held (as `World.step`; non-finite controls raise ValueError naming slot, car and
-        column), then compute their sensors and `hits`."""
+    def step(self, mask: np.ndarray, substeps: int = SUBSTEPS) -> None:
+        """Advance the slots where `mask` (n_slots,) is True by `substeps` sub-steps of 0.002 s
+        (default 10: 0.02 s; TORCS's schedule gives 10 or 11) with their `controls` rows held
+        (as `World.step`; non-finite controls raise ValueError naming slot, car and column),
+        then compute their sensors and `hits`."""
+        if substeps != SUBSTEPS and not (isinstance(substeps, (int, np.integer)) and 1 <= substeps <= 100):
+            raise ValueError(f"substeps must be an integer in 1..100, got {substeps!r}")
+        nsub = int(substeps)
         mask = np.asarray(mask, dtype=bool)
         u = self.controls
         kernel.check_controls(u, self._info)
@@ -407,7 +411,7 @@ class WorldBatch:
         while True:
             self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt,
                           self._surf, self._tsc, self._track, self.offsets, self.n_cars, run,
-                          self._kpos, self._near, self._piece, self._bps, self.hits, SUBSTEPS,
+                          self._kpos, self._near, self._piece, self._bps, self.hits, nsub,
                           DT, self.fuel, self.contact, self._snap, self._path, self._turn)
             near = np.flatnonzero(run & (self._near != 0))
             if near.size == 0:
@@ -415,7 +419,7 @@ class WorldBatch:
             for e in near:
                 self._resolve(int(e))
             run[:] = False
-            run[near] = self._kpos[near] < SUBSTEPS
+            run[near] = self._kpos[near] < nsub
             if not run.any():
                 break
         _race_positions(self.state, mask, self.offsets, self.n_cars, self.race_pos)

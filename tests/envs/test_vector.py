@@ -182,6 +182,18 @@ def test_without_contact_and_with_fuel_the_episodes_still_match():
     assert ended >= 2
 
 
+def test_torcs_tick_schedule_and_grid_start_match_with_a_clock_per_episode():
+    # episodes end (and restart their clocks) at different ticks; past tick 12 of each episode
+    # TORCS's schedule has 11-sub-step ticks, so the batch runs 10- and 11-sub-step slots at once
+    cfg = {"server": {"tracks": ["madsim-road", "madsim-oval"], "order": "random",
+                      "max_steps": 35, "tick_schedule": "torcs",
+                      "grid": {"rows": 1, "distance_to_start": 100}},
+           "agents": [{"name": "learner"}],
+           "traffic": [{"behaviour": "ConstVel", "target_speed": 8.0}]}
+    starts, ended = compare(cfg, 3, 80)
+    assert ended >= 4
+
+
 def test_disabled_autoreset_restarts_only_the_masked_episodes():
     cfg = {"server": {"max_steps": 20}, "agents": [{}]}
     mode = AutoresetMode.DISABLED
