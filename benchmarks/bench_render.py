@@ -23,7 +23,7 @@ import numpy as np
 from madsim.cars import load_car
 from madsim.physics.sensors import SensorSuite
 from madsim.physics.world import World
-from madsim.render.image_obs import ImageObservation
+from madsim.agents.image_obs import ImageObservation
 from madsim.tracks import load_track
 
 

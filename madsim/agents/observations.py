@@ -100,7 +100,7 @@ class ObservationBuilder:
                  obs_max: Mapping[str, float] | None = None):
         if mode == "Image":
             raise ValueError("mode 'Image' is built by ObservationBuilder.from_config "
-                             "(madsim.render.image_obs.ImageObservationBuilder)")
+                             "(madsim.agents.image_obs.ImageObservationBuilder)")
         if mode not in OBSERVATION_MODES:
             raise ValueError(f"unknown observation mode {mode!r}; one of {OBSERVATION_MODES}")
         if mode == "Fields":
@@ -155,7 +155,7 @@ class ObservationBuilder:
     def from_config(cls, obs) -> ObservationBuilder:
         """From a config's ObservationConfig."""
         if obs.mode == "Image":
-            from madsim.render.image_obs import ImageObservationBuilder
+            from madsim.agents.image_obs import ImageObservationBuilder
 
             return ImageObservationBuilder(obs.image_size, obs.image_metres)
         return cls(obs.mode, obs.fields, normalise=obs.normalised, obs_min=obs.obs_min,

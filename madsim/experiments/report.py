@@ -72,7 +72,7 @@ def markdown_table(table: PaperTable, cells: dict) -> str:
 
 
 def _curves(ax, out: Path, record: dict) -> None:
-    from madsim.train.plots import read_csv_columns
+    from madsim.render.learning_curves import read_csv_columns
 
     for name in record.get("subruns", {}):
         progress, rllib = out / name / "progress.csv", out / name / "rllib.csv"

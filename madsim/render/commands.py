@@ -62,7 +62,7 @@ def cmd_plot(args) -> int:
     from pathlib import Path
 
     if len(args.traces) == 1 and Path(args.traces[0]).is_dir():
-        from madsim.train.plots import plot_learning_curves
+        from madsim.render.learning_curves import plot_learning_curves
 
         out = plot_learning_curves(args.traces[0], args.output)
         print(f"wrote {out}")

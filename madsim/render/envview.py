@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from madsim.render.image_obs import poses_from_sensors
+from madsim.net.protocol import SNAKEOIL_ANGLES_DEG
+from madsim.raster.poses import poses_from_sensors
 from madsim.render.scene import CarPoses, Hud, Overlay, kinds_of_plan
 from madsim.render.topdown import Camera, Renderer
 
@@ -65,7 +66,7 @@ class EnvView:
         overlay = None
         if self.overlay:
             suite = getattr(core.backend, "suite", None)
-            angles = suite.angles_deg[k] if suite is not None else _snakeoil_angles()
+            angles = suite.angles_deg[k] if suite is not None else SNAKEOIL_ANGLES_DEG
             overlay = Overlay.from_sensors(core.frame, k, angles)
         img = self.renderer.frame(poses, ids, kinds_of_plan(plan), highlight=k, hud=hud, overlay=overlay)
         if self.render_mode == "rgb_array":
@@ -92,9 +93,3 @@ def _hud_from_sensors(frame, k: int, label: str) -> Hud:
     return Hud(speed_kmh=row["speedX"], gear=row["gear"], rpm=row["rpm"] / 10.0 * 60.0 / (2 * np.pi),
                lap=None, lap_time_s=row["curLapTime"], position=row["racePos"], n_cars=len(frame),
                time_s=0.0, label=label)
-
-
-def _snakeoil_angles():
-    from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
-
-    return RANGEFINDER_ANGLES_DEG

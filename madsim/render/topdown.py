@@ -6,7 +6,7 @@ last one in a window. Cameras: "track" (the whole track, fixed), "follow" (north
 on a car), "rotate" (the car points up, 35 % from the bottom).
 
 The static track is painted once per zoom level into 256 x 256 tiles (the compiled quad
-filler of `madsim.render.raster`, 2 x 2 supersampled, edges and barriers as anti-aliased
+filler of `madsim.raster.track_raster`, 2 x 2 supersampled, edges and barriers as anti-aliased
 lines); a frame copies the tiles it needs (and, for "rotate", turns them with a compiled
 bilinear sampler), then pygame draws the cars, ids, overlays and the HUD. Without a display
 (no DISPLAY / WAYLAND_DISPLAY) SDL's dummy video driver is selected before pygame starts.
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from madsim.render import kernels
-from madsim.render.raster import BACKGROUND, FIXED_COLOURS, palette, track_quads
+from madsim.raster import kernels
+from madsim.raster.track_raster import BACKGROUND, FIXED_COLOURS, palette, track_quads
 from madsim.render.scene import CAMERAS, CarPoses, Hud, Overlay, hud_lines
 from madsim.tracks import Track
 

@@ -9,7 +9,7 @@ __all__ = ["TrainSettings", "evaluate_policy", "load_policy", "plot_learning_cur
 
 _WHERE = {"TrainSettings": "madsim.train.sb3", "load_policy": "madsim.train.sb3",
           "train": "madsim.train.sb3", "evaluate_policy": "madsim.train.evaluate",
-          "plot_learning_curves": "madsim.train.plots"}
+          "plot_learning_curves": "madsim.render.learning_curves"}
 
 
 def __getattr__(name: str):

@@ -37,7 +37,7 @@ def cmd_train(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    from madsim.train.plots import plot_learning_curves
+    from madsim.render.learning_curves import plot_learning_curves
 
     out = plot_learning_curves(args.run_dir, args.output)
     print(f"wrote {out}")

@@ -53,7 +53,7 @@ def test_parallel_env_renders_frames():
 
 def test_image_observation_mode_in_the_env():
     if "Image" not in OBSERVATION_MODES:
-        pytest.skip("observation mode 'Image' not wired in yet (madsim.render.image_obs.ImageObservationBuilder)")
+        pytest.skip("observation mode 'Image' not wired in yet (madsim.agents.image_obs.ImageObservationBuilder)")
     cfg = {"server": {"tracks": ["madsim-road"], "max_steps": 30},
            "agents": [{"name": "me", "action": {"space": "SAB"},
                        "observation": {"mode": "Image", "image_size": 48, "image_metres": 40.0}}]}
@@ -64,6 +64,6 @@ def test_image_observation_mode_in_the_env():
     obs, *_ = env.step(GO)
     assert env.observation_space.contains(obs)
     # the learner (ego colour) sits at its place in the picture: 3/4 down, centred
-    from madsim.render.image_obs import EGO_RGB
+    from madsim.agents.image_obs import EGO_RGB
 
     assert tuple(obs[35, 23]) == EGO_RGB

@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 
 from madsim.physics.sensors import SensorSuite
-from madsim.render.image_obs import (
+from madsim.agents.image_obs import (
     EGO_RGB,
     OTHER_RGB,
     ImageObservation,
     ImageObservationBuilder,
-    poses_from_sensors,
 )
-from madsim.render.raster import (
+from madsim.raster.poses import poses_from_sensors
+from madsim.raster.track_raster import (
     BACKGROUND,
     FIRST_SURFACE_LABEL,
     TrackRaster,
@@ -166,7 +166,7 @@ def test_raster_paints_road_kerb_grass_and_background(road):
 
 
 def test_compiled_track_poses_equal_track_pose(road):
-    from madsim.render.kernels import track_poses
+    from madsim.raster.kernels import track_poses
 
     rng = np.random.default_rng(0)
     s = rng.uniform(-100.0, 2 * road.length, 2000)      # wraps like Track.pose

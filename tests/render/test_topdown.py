@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("pygame", reason="the renderer needs pygame: pip install 'madsim[render]'")
 
 from madsim.physics import layout as L
-from madsim.render.raster import FIRST_SURFACE_LABEL, palette
+from madsim.raster.track_raster import FIRST_SURFACE_LABEL, palette
 from madsim.render.scene import CarPoses, Hud, Overlay, hud_lines
 from madsim.render.topdown import HUD_BG, KIND_COLOURS, Camera, Renderer
 

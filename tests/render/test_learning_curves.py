@@ -6,7 +6,7 @@ import math
 import pytest
 
 from madsim.train.commands import main as train_main
-from madsim.train.plots import plot_learning_curves, read_csv_columns
+from madsim.render.learning_curves import plot_learning_curves, read_csv_columns
 
 EVAL = [  # timesteps, wall_s, lap_fraction, avg_speed_kmh, completion_rate, mean_return, mean_steps
     (0, 1.0, 0.01, 0.3, 0.0, 51.0, 3000), (10000, 20.0, 0.45, 90.0, 0.0, 2400.0, 520),

@@ -1,4 +1,4 @@
-"""Compiled pixel kernels of the renderer: quad filling, egocentric sampling, car boxes.
+"""Compiled pixel kernels of the rasteriser: quad filling, egocentric sampling, car boxes.
 
 Rasters are label images (H, W) uint8 whose values index a palette (P, 3) uint8; RGB images
 are (H, W, 3) uint8. A raster maps world metres to pixels by `x0, y_top, ppm`: pixel (row r,

@@ -4,7 +4,7 @@
 (`TrackRaster`) and then, per frame, samples it rotated into the car's frame (the car points
 up, `ahead` of the image height in front of it) and draws every car as a box of its real size:
 the observing car in `EGO_RGB`, the others in `OTHER_RGB`. No pygame, no window: one compiled
-kernel per frame (`madsim.render.kernels.egocentric_frame`).
+kernel per frame (`madsim.raster.kernels.egocentric_frame`).
 
 Poses come from a World (`frame(world, k)`), its state array (`frame(state, k)` with car
 sizes from `car_sizes`), plain arrays (`frame_from_poses`), or an SCR SensorFrame
@@ -18,8 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from madsim.physics import layout as L
-from madsim.render import kernels
-from madsim.render.raster import BACKGROUND, TrackRaster
+from madsim.raster import kernels
+from madsim.raster.poses import poses_from_sensors
+from madsim.raster.track_raster import BACKGROUND, TrackRaster
 from madsim.tracks import Track
 
 EGO_RGB = (230, 40, 40)
@@ -122,16 +123,6 @@ class ImageObservation:
         if self.car_sizes.shape != (n, 2):
             raise ValueError(f"car_sizes has shape {self.car_sizes.shape}, expected ({n}, 2)")
         return self.car_sizes[:, 0], self.car_sizes[:, 1]
-
-
-def poses_from_sensors(track: Track, frame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """World x, y (m) and yaw (rad) of every car of a SensorFrame: the track point
-    (distFromStart, trackPos * width / 2) and yaw = track tangent - angle (SCR's angle)."""
-    s = np.ascontiguousarray(frame.distFromStart, dtype=np.float64)
-    n = np.ascontiguousarray(frame.trackPos, dtype=np.float64) * (track.width / 2)
-    x, y, heading = np.empty_like(s), np.empty_like(s), np.empty_like(s)
-    kernels.track_poses(track.geo, track.length, s, n, x, y, heading)
-    return x, y, heading - np.asarray(frame.angle, dtype=np.float64)
 
 
 class ImageObservationBuilder:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from madsim.render import kernels
+from madsim.raster import kernels
 from madsim.tracks import Track
 from madsim.tracks.build import COL
 
@@ -156,7 +156,7 @@ class TrackRaster:
     """The whole track painted once into a label image at `ppm` pixels per metre.
 
     `labels` (H, W) uint8, `palette` (P, 3) uint8, `x0`, `y_top` (world metres of the left and
-    top raster edges) and `ppm`; see `madsim.render.kernels` for the pixel convention. The
+    top raster edges) and `ppm`; see `madsim.raster.kernels` for the pixel convention. The
     resolution is lowered if the image would exceed `max_pixels` (big TORCS tracks).
     """
 
