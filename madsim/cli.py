@@ -1,8 +1,9 @@
-"""The `madsim` command line: tracks, cars, convert (more doors are added by later layers)."""
+"""The `madsim` command line: `main`, and the handlers of the commands that have no package of
+their own (run, tracks, cars, config, serve, drive, convert). Every subcommand's options, and the
+parser tree, are in madsim.cli_parsers."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -295,232 +296,9 @@ def cmd_drive(args) -> int:
     return 0
 
 
-# --- parser -------------------------------------------------------------------------------
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage block): `madsim run: error: ...`."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
-def _int(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-
-
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    value = _int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
-def seed_int(text: str) -> int:
-    """argparse type: a seed, an integer >= 0 (numpy's seeds are non-negative)."""
-    value = _int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"a seed must be >= 0, got {value}")
-    return value
-
-
-def udp_port(text: str) -> int:
-    """argparse type: a UDP port, 1..65535."""
-    value = _int(text)
-    if not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"a UDP port is 1..65535, got {value}")
-    return value
-
-
-
-def add_run_parser(sub) -> None:
-    """`madsim run`."""
-    r = sub.add_parser("run", help="drive a scenario (default: one lap of madsim-road with traffic)")
-    r.add_argument("config", nargs="?", default=None, help="scenario YAML (default: the bundled run scenario)")
-    r.add_argument("--episodes", type=positive_int, default=1)
-    r.add_argument("--driver", default="pid",
-                   help="pid: the built-in driver fitting each agent's action space (T-S: lane and speed "
-                        "through the PID; S-A-B: steering and pedals); random; or a saved policy")
-    r.add_argument("--seed", type=seed_int, default=0)
-    r.add_argument("--video", default=None,
-                   help="write the episodes as out.mp4 (800x600, 25 frames/s) or out.gif (400x300, 5 frames/s: "
-                        "about 5 MB a lap)")
-    r.add_argument("--plot", default=None, help="write trajectories and speed/trackPos plots (PNG)")
-    r.add_argument("--render", action="store_true", help="open a window")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--max-steps", type=positive_int, default=None, help="end each episode after this many env steps")
-    r.add_argument("--port", type=udp_port, default=None,
-                   help="drive the cars of a running SCR server (madsim serve, TORCS) from this UDP port on")
-    r.add_argument("--host", default="127.0.0.1", help="the SCR server's host (with --port)")
-    add_import_option(r)
-    r.set_defaults(func=cmd_run)
-
-
-def add_tracks_parser(sub) -> None:
-    """`madsim tracks`."""
-    tracks = sub.add_parser("tracks", help="list, inspect, draw and generate tracks")
-    tsub = tracks.add_subparsers(dest="tracks_command", required=True)
-    t = tsub.add_parser("list", help="bundled and installed TORCS tracks")
-    t.add_argument("--json", action="store_true")
-    t.set_defaults(func=cmd_tracks_list)
-    t = tsub.add_parser("info", help="facts about one track")
-    t.add_argument("track", help="track name or path")
-    t.add_argument("--json", action="store_true")
-    t.set_defaults(func=cmd_tracks_info)
-    t = tsub.add_parser("show", help="draw a track map")
-    t.add_argument("track", help="track name or path")
-    t.add_argument("-o", "--output", required=True, help="image file (e.g. map.png)")
-    t.add_argument("--marks", type=float, default=500.0, help="distance marks every M metres (0: none)")
-    t.set_defaults(func=cmd_tracks_show)
-    t = tsub.add_parser("generate", help="write a random closed track as TORCS XML")
-    t.add_argument("--seed", type=int, required=True)
-    t.add_argument("--length", type=float, default=3000.0, help="approximate length, m")
-    t.add_argument("--width", type=float, default=12.0, help="road width, m")
-    t.add_argument("--name", default=None)
-    t.add_argument("-o", "--output", required=True)
-    t.set_defaults(func=cmd_tracks_generate)
-
-
-def add_cars_parser(sub) -> None:
-    """`madsim cars`."""
-    cars = sub.add_parser("cars", help="list and inspect cars")
-    csub = cars.add_subparsers(dest="cars_command", required=True)
-    c = csub.add_parser("list", help="bundled and installed TORCS cars")
-    c.add_argument("--json", action="store_true")
-    c.set_defaults(func=cmd_cars_list)
-    c = csub.add_parser("info", help="facts about one car")
-    c.add_argument("car", help="car name or path")
-    c.add_argument("--json", action="store_true")
-    c.set_defaults(func=cmd_cars_info)
-
-
-def add_config_parser(sub) -> None:
-    """`madsim config`."""
-    cfg = sub.add_parser("config", help="check or show a scenario configuration (YAML)")
-    gsub = cfg.add_subparsers(dest="config_command", required=True)
-    g = gsub.add_parser("check", help="validate a config file (MADRaS files accepted)")
-    g.add_argument("file")
-    add_import_option(g)
-    g.set_defaults(func=cmd_config_check)
-    g = gsub.add_parser("show", help="print the fully resolved config with defaults")
-    g.add_argument("file")
-    add_import_option(g)
-    g.set_defaults(func=cmd_config_show)
-
-
-def add_serve_parser(sub) -> None:
-    """`madsim serve`."""
-    sv = sub.add_parser("serve", help="a drop-in TORCS scr_server on UDP")
-    sv.add_argument("--track", default="madsim-road")
-    sv.add_argument("--cars", default="madsim-sedan", help="comma-separated car names, one per client")
-    sv.add_argument("--clients", type=int, default=1)
-    sv.add_argument("--host", default="127.0.0.1")
-    sv.add_argument("--port", type=udp_port, default=3001)
-    sv.add_argument("--laps", type=int, default=None)
-    sv.add_argument("--mode", choices=["sync", "timeout", "realtime"], default="sync")
-    sv.add_argument("--timeout-ms", type=float, default=10.0)
-    sv.add_argument("--noisy", action="store_true", help="SCR sensor noise (as torcs -noisy)")
-    sv.add_argument("--identified-reply", choices=["plain", "pid"], default="plain",
-                    help="'pid' answers ***identified***:<pid> as MADRaS' snakeoil expects")
-    sv.add_argument("--seed", type=int, default=0)
-    sv.add_argument("--max-ticks", type=int, default=None)
-    sv.add_argument("--countdown", type=int, default=49, help="frozen ticks before the start (TORCS: 49)")
-    sv.add_argument("--tick-schedule", choices=["fixed", "torcs"], default="fixed",
-                    help="'fixed': every tick 20 ms; 'torcs': TORCS's own 20 or 22 ms driver calls")
-    sv.add_argument("--grid", default=None,
-                    help="the race's Starting Grid, e.g. rows=1,distance_to_start=100 (the track's own "
-                         "grid overrides it, as in TORCS); default quickrace's: 2 rows, 25 m")
-    sv.add_argument("--start-timeout", type=float, default=None, help="give up if clients do not come (s)")
-    sv.add_argument("--client-deadline", type=float, default=5.0,
-                    help="sync mode: seconds of silence before a client is treated as in timeout mode")
-    sv.add_argument("--nofuel", action="store_true")
-    sv.add_argument("--nodamage", action="store_true")
-    sv.add_argument("--log-csv", default=None, help="write a per-tick trace to this CSV file")
-    sv.set_defaults(func=cmd_serve)
-
-
-def add_drive_parser(sub) -> None:
-    """`madsim drive`."""
-    dv = sub.add_parser("drive", help="drive one car of a scr_server with the built-in simple driver")
-    dv.add_argument("--host", default="127.0.0.1")
-    dv.add_argument("--port", type=udp_port, default=3001)
-    dv.add_argument("--id", default="SCR")
-    dv.add_argument("--driver", choices=["simple"], default="simple",
-                    help="simple: steer to the track axis, slow for bends, shift by rpm")
-    dv.add_argument("--max-steps", type=int, default=None)
-    dv.add_argument("--wait", type=float, default=30.0,
-                    help="seconds to look for the server (and to wait for it mid-race) before giving up")
-    dv.set_defaults(func=cmd_drive)
-
-
-def add_convert_parser(sub) -> None:
-    """`madsim convert`."""
-    conv = sub.add_parser("convert", help="convert TORCS assets to madsim's compiled form and back")
-    vsub = conv.add_subparsers(dest="convert_command", required=True)
-    v = vsub.add_parser("track", help="TORCS XML <-> compiled .mtrack")
-    v.add_argument("input")
-    v.add_argument("-o", "--output", required=True)
-    v.set_defaults(func=cmd_convert_track)
-    v = vsub.add_parser("car", help="TORCS car XML <-> compiled .json")
-    v.add_argument("input")
-    v.add_argument("-o", "--output", required=True)
-    v.set_defaults(func=cmd_convert_car)
-
-
-def _add_traffic_parser(sub) -> None:
-    from madsim.agents.traffic_client import add_traffic_parser
-
-    add_traffic_parser(sub)
-
-
-def _add_train_parser(sub) -> None:
-    from madsim.train.commands import add_parsers
-
-    add_parsers(sub, with_plot=False)   # madsim train; `madsim plot DIR` is render's plot
-
-
-def _add_experiment_parser(sub) -> None:
-    from madsim.experiments.commands import add_parser
-
-    add_parser(sub)
-
-
-def _add_render_parsers(sub) -> None:
-    from madsim.render.commands import add_render_commands
-
-    add_render_commands(sub)
-
-
-# One function per subcommand (or family), called in this order by build_parser: a new
-# subcommand is one function here, or an `add_...(sub)` in its own module listed here.
-SUBCOMMANDS = (add_run_parser, add_tracks_parser, add_cars_parser, add_config_parser, add_serve_parser,
-               add_drive_parser, _add_traffic_parser, _add_train_parser, _add_experiment_parser,
-               add_convert_parser, _add_render_parsers)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    from madsim import __version__
-
-    p = Parser(prog="madsim", description="madsim: a TORCS-like driving simulator for RL.")
-    p.add_argument("--version", action="version", version=f"madsim {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
-    for add in SUBCOMMANDS:
-        add(sub)
-    return p
-
-
-def add_import_option(parser) -> None:
-    """`--import MODULE_OR_FILE` (repeatable): the user's rewards, dones, behaviours."""
-    parser.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE",
-                        help="import this module or .py file first (registers your rewards, dones, "
-                             "traffic behaviours); repeatable; or list them under `plugins:` in the YAML")
-
-
 def main(argv: list[str] | None = None) -> int:
+    from madsim.cli_parsers import build_parser
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -543,4 +321,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m madsim.cli`: run the imported module's main, whose handlers (imported by name,
+    # madsim.cli_parsers) raise that module's CliError, not this __main__ copy's
+    from madsim.cli import main as _main
+
+    sys.exit(_main())

@@ -134,7 +134,7 @@ def sensor_reference() -> str:
 
 def cli_reference() -> str:
     """docs/cli.md: every `madsim` command with its options (argparse help)."""
-    from madsim.cli import build_parser
+    from madsim.cli_parsers import build_parser
 
     parser = build_parser()
     out = [GENERATED, "", "# Command-line reference", "", "```", parser.format_help().rstrip(), "```", ""]

@@ -1,5 +1,9 @@
 """The built-in drivers of `madsim run`: one per action space, both reading one car's SCR row.
 
+In madsim a driver is whatever chooses a car's actions from its sensors: these built-in ones, a
+trained policy (`madsim run --driver`), the SCR client's `madsim.net.client.simple_driver`, or
+a TORCS robot (TORCS's own word for the same thing).
+
 `builtin_driver(agent)` returns a callable row -> action that fits the agent's action space:
 - T-S (`TrackSpeedDriver`): speed from the free road ahead, lane 0 unless a car is close
   ahead, then the side with more room; output (trackPos, km/h), or normalised.

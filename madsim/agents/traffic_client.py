@@ -26,7 +26,7 @@ import yaml
 from madsim.agents.traffic import BEHAVIOURS, TrafficBehaviour
 from madsim.net.client import RunResult, ScrClient
 
-__all__ = ["add_traffic_parser", "behaviour_rng", "build_behaviour", "cmd_traffic", "drive_car",
+__all__ = ["behaviour_rng", "build_behaviour", "cmd_traffic", "drive_car",
            "parse_params", "run_traffic"]
 
 _BASE_ARGS = ("collision_time_window", "min_safe_dist", "car")
@@ -147,26 +147,6 @@ def run_traffic(name: str, params: Mapping | None = None, *, host: str = "127.0.
 # --- command line ----------------------------------------------------------------------------
 
 
-def add_traffic_parser(subparsers) -> argparse.ArgumentParser:
-    """Add the `traffic` subcommand to the madsim CLI's subparsers."""
-    tp = subparsers.add_parser("traffic", help="drive cars of a scr_server with a traffic behaviour")
-    tp.add_argument("--behaviour", required=True, help=f"one of: {', '.join(sorted(BEHAVIOURS))}")
-    tp.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                    help="behaviour parameter in SI units (repeatable), e.g. target_speed=12.5")
-    tp.add_argument("--host", default="127.0.0.1")
-    tp.add_argument("--port", type=int, default=3001, help="port of the first car")
-    tp.add_argument("--count", type=int, default=1, help="cars, on ports PORT .. PORT+COUNT-1")
-    tp.add_argument("--seed", type=int, default=0, help="car k draws from default_rng([SEED, k])")
-    tp.add_argument("--car", default=None, help="car model, for its size and steering (default sedan)")
-    tp.add_argument("--track-length", type=float, default=None,
-                    help="m; else learnt at the first start-line crossing")
-    tp.add_argument("--collision-time-window", type=float, default=1.0, help="s of headway")
-    tp.add_argument("--min-safe-dist", type=float, default=1.0, help="m to cars and road edges")
-    tp.add_argument("--max-steps", type=int, default=None)
-    tp.set_defaults(func=cmd_traffic)
-    return tp
-
-
 def cmd_traffic(args) -> int:
     """Run `madsim traffic`; bad arguments raise ValueError (the CLI prints one line), a car
     that fails (no server, a timeout) is reported here with exit status 2."""
@@ -180,21 +160,3 @@ def cmd_traffic(args) -> int:
         print(f"madsim: error: {exc}", file=sys.stderr)
         return 2
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """`python -m madsim.agents.traffic_client ...` = `madsim traffic ...`."""
-    parser = argparse.ArgumentParser(prog="madsim")
-    add_traffic_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["traffic", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return cmd_traffic(args)
-    except (ValueError, OSError) as exc:
-        print(f"madsim: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
-
-
-if __name__ == "__main__":
-    sys.exit(main())

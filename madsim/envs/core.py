@@ -1,9 +1,9 @@
 """The engine under both envs: learning agents and traffic on a backend, tick by tick.
 
 `MadrasCore` holds what the gymnasium env and the PettingZoo env share: the per-agent spaces
-(built once, never rebuilt, so a user's `action_space.seed()` is never lost), the per-agent
-drivers (action -> controls, rewards, dones), the traffic behaviours, the communication hub,
-the curriculum, and the tick loop. Both envs are thin shells around `reset` and `step`, which
+(built once, never rebuilt, so a user's `action_space.seed()` is never lost), each agent's
+side of the env (action -> controls, rewards, dones), the traffic behaviours, the
+communication hub, the curriculum, and the tick loop. Both envs are thin shells around `reset` and `step`, which
 take and return dicts keyed by agent name.
 
 One env step (ARCHITECTURE.md, "the tick"): actions are checked (shape, NaN -> ValueError)
@@ -98,9 +98,10 @@ def episode_seed(seed: int | None, np_random: np.random.Generator) -> int:
     return int(seed)
 
 
-class _Driver:
-    """One learning agent in one curriculum stage: action -> controls every tick, its rewards
-    and dones. Per-episode state lives in its reward/done/PID objects (reset each episode)."""
+class _StageAgent:
+    """One learning agent in one curriculum stage, as the env sees it: action -> controls every
+    tick, its rewards and dones. Per-episode state lives in its reward/done/PID objects (reset
+    each episode). (Not a driver: in madsim a driver chooses actions, `madsim.drivers`.)"""
 
     def __init__(self, agent: AgentConfig, cfg: ScenarioConfig, space: gymnasium.spaces.Box):
         s = cfg.server
@@ -179,7 +180,7 @@ class _Driver:
 @dataclasses.dataclass
 class _Stage:
     cfg: ScenarioConfig
-    drivers: dict[str, _Driver]
+    agents: dict[str, _StageAgent]
     traffic: list            # behaviour objects, one per cfg.traffic entry (None: not built)
 
 
@@ -252,8 +253,8 @@ class MadrasCore:
             cfg = self.config
             if cfg.curriculum is not None:
                 cfg = apply_stage(cfg, cfg.curriculum.stages[index])
-            drivers = {a.name: _Driver(a, cfg, self.action_spaces[a.name]) for a in cfg.agents}
-            stage = self._stages[index] = _Stage(cfg, drivers, [None] * len(cfg.traffic))
+            agents = {a.name: _StageAgent(a, cfg, self.action_spaces[a.name]) for a in cfg.agents}
+            stage = self._stages[index] = _Stage(cfg, agents, [None] * len(cfg.traffic))
         return stage
 
     def _behaviour(self, stage: _Stage, j: int):
@@ -320,7 +321,7 @@ class MadrasCore:
         self.tick = 0
         self._init_wait(cfg.server.init_wait * self.ticks_per_step)
         for name in self.live:
-            stage.drivers[name].reset(self.frame.flat[self.agent_rows[name]], track.length)
+            stage.agents[name].reset(self.frame.flat[self.agent_rows[name]], track.length)
         if self.hub is not None:
             self.hub.reset()
         shared = {"seed": plan.seed, "episode": plan.episode, "stage": self.stage_index(),
@@ -373,33 +374,33 @@ class MadrasCore:
         for name in actions:
             if name not in self.action_spaces:
                 raise ValueError(f"action for unknown agent {name!r}; agents: {self.names}")
-        drivers = self.stage.drivers
+        agents = self.stage.agents
         chosen = {}
         for name in self.live:
             if name not in actions:
                 raise ValueError(f"no action for live agent {name!r}")
-            chosen[name] = drivers[name].check(actions[name])
+            chosen[name] = agents[name].check(actions[name])
         agent_rows = self.agent_rows
         if self.hub is not None:
             rows = self.rows
             self.hub.send({n: rows[agent_rows[n]] for n in self.live}, chosen)
         for name in self.live:
-            drivers[name].begin(chosen[name], self.action_rng)
+            agents[name].begin(chosen[name], self.action_rng)
         # per agent: [reward, terms, terminated, truncated, fired, frame, ticks]
         state = {name: [0.0, None, False, False, (), None, 0] for name in self.live}
-        running = [(name, drivers[name], agent_rows[name], state[name]) for name in self.live]
+        running = [(name, agents[name], agent_rows[name], state[name]) for name in self.live]
         u = self.controls
         backend = self.backend
         frame = self.frame
         for _ in range(self.ticks_per_step):
-            for name, drv, k, st in running:
-                drv.fill(u[k], frame.flat[k])
+            for name, agent, k, st in running:
+                agent.fill(u[k], frame.flat[k])
             if self.behaviours:
                 self._traffic_controls(frame)    # this tick's sensors, not the step's first
             new = backend.step(u)
             self.tick += 1
             if new is None:                          # the server ended the race
-                for name, drv, k, st in running:
+                for name, agent, k, st in running:
                     st[3], st[4], st[5] = True, ("ServerEnded",), frame
                 running = []
                 break
@@ -407,10 +408,10 @@ class MadrasCore:
             hits = backend.collisions()
             still = []
             for entry in running:
-                name, drv, k, st = entry
+                name, agent, k, st = entry
                 collision = bool(hits[k]) if hits is not None else False
-                r, terms, term, trunc, fired = drv.score(prev_flat[k:k + 1], frame.flat[k:k + 1],
-                                                         chosen[name], collision)
+                r, terms, term, trunc, fired = agent.score(prev_flat[k:k + 1], frame.flat[k:k + 1],
+                                                           chosen[name], collision)
                 st[0] += r
                 if st[1] is None:
                     st[1] = terms
@@ -429,7 +430,7 @@ class MadrasCore:
             if not running:
                 break
         self.frame = frame
-        for name, drv, k, st in running:
+        for name, agent, k, st in running:
             st[5] = frame
         obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}
         for name, (r, terms, term, trunc, fired, fr, ticks) in state.items():

@@ -1,8 +1,8 @@
-"""`madsim experiment list | run NAME | report DIR`: parser and handlers for madsim's CLI."""
+"""`madsim experiment list | run NAME | report DIR`: the handlers (options: madsim.cli_parsers)."""
 
 from __future__ import annotations
 
-__all__ = ["add_parser"]
+__all__ = ["cmd_list", "cmd_report", "cmd_run"]
 
 
 def cmd_list(args) -> int:
@@ -33,21 +33,3 @@ def cmd_report(args) -> int:
 
     print(write_report(args.dir))
     return 0
-
-
-def add_parser(sub) -> None:
-    """Add `experiment` (list, run, report) to an argparse subparsers object."""
-    e = sub.add_parser("experiment", help="the MADRaS paper's six experiments: list, run, report")
-    esub = e.add_subparsers(dest="experiment_command", required=True)
-    esub.add_parser("list", help="the experiments, their sub-runs and the budgets").set_defaults(func=cmd_list)
-    r = esub.add_parser("run", help="train, evaluate over 100 episodes, write a result folder")
-    r.add_argument("name", help="exp1..exp6, or a sub-run such as exp1-sab, exp1-ts, exp2-random")
-    r.add_argument("--budget", choices=["smoke", "short", "full"], default="smoke")
-    r.add_argument("--out", default=None, help="result folder (default runs/NAME-BUDGET-seedS)")
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--address", default=None,
-                   help="Ray cluster for exp6's RLlib training ('auto' or ray://HOST:10001)")
-    r.set_defaults(func=cmd_run)
-    p = esub.add_parser("report", help="rewrite table.md and the picture of a result folder")
-    p.add_argument("dir")
-    p.set_defaults(func=cmd_report)

@@ -19,16 +19,15 @@ from udp import free_ports
 from madsim.agents.traffic_client import (
     behaviour_rng,
     build_behaviour,
-    main,
     parse_params,
 )
-from madsim.cli import make_world_factory
+from madsim.cli import main, make_world_factory
 from madsim.physics.sensors import SensorSuite
 
 TRACK = "madsim-oval"
 TICKS = 400
 SERVE = [sys.executable, "-m", "madsim.cli", "serve"]
-TRAFFIC = [sys.executable, "-m", "madsim.agents.traffic_client"]
+TRAFFIC = [sys.executable, "-m", "madsim", "traffic"]
 WAIT_S = 90.0           # bound on a whole race (start-up, numba cache, 400 ticks in lock-step)
 
 
@@ -111,7 +110,7 @@ def test_udp_traffic_follows_the_in_process_trajectory(tmp_path):
     (["--behaviour", "ConstVel", "--count", "0"], "--count must be >= 1"),
 ])
 def test_cli_errors_are_one_line_and_exit_2(args, message, capsys):
-    assert main(["--port", "9", *args]) == 2
+    assert main(["traffic", "--port", "9", *args]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
 

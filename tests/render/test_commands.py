@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import argparse
-
 import pytest
 
-from madsim.render.commands import add_render_commands
+from madsim.cli_parsers import build_parser
 
 
 def run(argv):
-    parser = argparse.ArgumentParser(prog="madsim")
-    add_render_commands(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
+    """The command's handler called directly, so its ValueErrors reach the test."""
+    args = build_parser().parse_args(argv)
     return args.func(args)
 
 

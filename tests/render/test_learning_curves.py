@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from madsim.train.commands import main as train_main
+from madsim.cli import main as cli_main
 from madsim.render.learning_curves import plot_learning_curves, read_csv_columns
 
 EVAL = [  # timesteps, wall_s, lap_fraction, avg_speed_kmh, completion_rate, mean_return, mean_steps
@@ -39,7 +39,7 @@ def test_learning_curves_png_is_written(tmp_path):
 
 def test_default_output_is_inside_the_run_folder_and_progress_is_optional(tmp_path, capsys):
     _write_run(tmp_path, with_progress=False)
-    assert train_main(["plot", str(tmp_path)]) == 0
+    assert cli_main(["plot", str(tmp_path)]) == 0
     assert (tmp_path / "learning_curves.png").is_file()
     assert "learning_curves.png" in capsys.readouterr().out
 
@@ -54,7 +54,7 @@ def test_csv_columns_keep_empty_cells_as_nan(tmp_path):
 def test_a_folder_without_evaluations_is_refused(tmp_path, capsys):
     with pytest.raises(FileNotFoundError, match="no eval.csv"):
         plot_learning_curves(tmp_path)
-    assert train_main(["plot", str(tmp_path)]) == 2
+    assert cli_main(["plot", str(tmp_path)]) == 2
     assert "no eval.csv" in capsys.readouterr().err
     (tmp_path / "eval.csv").write_text("timesteps,lap_fraction\n")
     with pytest.raises(ValueError, match="no evaluation rows"):

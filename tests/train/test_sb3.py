@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("stable_baselines3", reason="stable-baselines3 not installed: pip install 'madsim[train]'")
 
 from madsim.envs.config import load_config
-from madsim.train.commands import main as train_main
+from madsim.cli import main as cli_main
 from madsim.train.evaluate import evaluate_policy
 from madsim.train.sb3 import TrainError, TrainSettings, load_policy, train
 
@@ -119,7 +119,7 @@ def test_load_policy_errors_name_the_file(tmp_path):
 def test_cli_reports_a_bad_config_in_one_line(tmp_path, capsys):
     cfg = tmp_path / "bad.yml"
     cfg.write_text("server: {trakcs: [madsim-road]}\n")
-    code = train_main(["train", str(cfg), "--steps", "10", "--out", str(tmp_path / "o")])
+    code = cli_main(["train", str(cfg), "--steps", "10", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert code == 2
     assert err.startswith("madsim: error:") and "trakcs" in err and len(err.strip().splitlines()) == 1

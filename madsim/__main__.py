@@ -1,0 +1,7 @@
+"""`python -m madsim ...` is the `madsim` command."""
+
+import sys
+
+from madsim.cli import main
+
+sys.exit(main())
