@@ -9,7 +9,7 @@ first repetition after a source change compiles):
 - `world`: import `World`, load g-track-1 and car1-trb1, build the World and a SensorSuite, one
   tick (physics + sensors + encoder);
 - `vec`: `import madsim`, `make_vec(num_envs=64)` (default scenario), `reset(seed=0)`, one
-  `step` of 64 actions (the batch loops of `physics/batch.py` are cached kernels too);
+  `step` of 64 actions (the batch loops of `physics/world_batch.py` are cached kernels too);
 - `serve`: `madsim serve` from the process start to "waiting for" clients (imports, world,
   warm-up of every race kernel, heap freeze): what a client waits for before identifying.
 Prints each run's phases and the median total per case.

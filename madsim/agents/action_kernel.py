@@ -1,4 +1,4 @@
-"""Compiled action mapping of the learners of a batch (madsim.agents.batched.ActionMap).
+"""Compiled action mapping of the learners of a batch (madsim.agents.component_batch.ActionMap).
 
 `take_actions`: this step's checked (and noised) actions (m, dim) of slots (m,) -> S-A-B
 controls `sab` (n, 3) or T-S targets `lane_des`, `speed_des_kmh` (n,). `fill_controls`: the

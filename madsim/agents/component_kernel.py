@@ -4,7 +4,7 @@
 SCR sensor rows before and after the tick, prev[i] and cur[i] ((m, 79), wire order),
 length[i] (track length, m) and collision[i] (contact during the tick). Per slot e each
 component has parameters par[c, e, :NPAR] and state state[c, e, :NSTATE] (set at episode start
-by the Python side, madsim.agents.batched.ComponentBatch). Dones return 1.0 / 0.0.
+by the Python side, madsim.agents.component_batch.ComponentBatch). Dones return 1.0 / 0.0.
 The formulas and their docs are those of the classes in madsim.agents.rewards / dones.
 """
 

@@ -21,7 +21,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from madsim.agents import component_kernel as ck
-from madsim.agents.batched import Builtin
+from madsim.agents.component_batch import Builtin
 from madsim.agents.registry import registrar
 from madsim.agents.rewards import TICK_S
 

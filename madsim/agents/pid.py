@@ -15,7 +15,7 @@ maps [-1, 1] to [-3, 1]).
 
 The arithmetic is written once, compiled, over plain state and parameter rows (`pid_step`,
 `pid_controls`): the classes here drive one controller with it, `BatchedTS`
-(madsim.agents.batched) every learner of a batch, and the traffic kernel every traffic car.
+(madsim.agents.component_batch) every learner of a batch, and the traffic kernel every traffic car.
 """
 
 from __future__ import annotations
@@ -271,7 +271,7 @@ class TrackSpeedController:
     the speed in km/h. Use: `set_action(a)` once per env step, `act(row)` every tick with the
     latest observation; `act` returns np.array([steer, accel, brake, gear]) (gear from
     `speed_gear`, MADRaS's gearbox; the env overrides it in manual mode). The envs run the same
-    controller over all their learners (madsim.agents.batched.BatchedTS).
+    controller over all their learners (madsim.agents.component_batch.BatchedTS).
     """
 
     def __init__(self, pid: PIDController, *, target_speed: float,

@@ -19,7 +19,7 @@ positions gained beyond the best position of the episode (so losing and regainin
 nothing). AngularAcceleration follows the paper's formula (no dead zone unless `threshold`).
 
 The built-ins are written once, batch-first and compiled (madsim.agents.component_kernel): the
-envs evaluate them over all episodes or agents in one call (madsim.agents.batched); calling one
+envs evaluate them over all episodes or agents in one call (madsim.agents.component_batch); calling one
 as above is a batch of one. A component registered with `register_reward` is plain Python
 with the API above; the envs call it once per car and tick (a few us each).
 """
@@ -31,7 +31,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from madsim.agents import component_kernel as ck
-from madsim.agents.batched import Builtin
+from madsim.agents.component_batch import Builtin
 from madsim.agents.registry import registrar
 
 __all__ = [

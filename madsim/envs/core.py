@@ -24,7 +24,7 @@ row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`). Ever
 `TrafficFleet` call drives them all (the built-in behaviours compiled, other objects by `act`).
 
 Each agent's action mapping, T-S controller, rewards and dones are the batch-first code of
-`madsim.agents.batched` (what make_vec runs over its episodes), here a batch of one per agent.
+`madsim.agents.component_batch` (what make_vec runs over its episodes), here a batch of one per agent.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from madsim.agents.batched import ActionMap, ComponentBatch, weighted_sum
+from madsim.agents.component_batch import ActionMap, ComponentBatch, weighted_sum
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
@@ -162,7 +162,7 @@ class _StageAgent:
 
     def score(self, prev: np.ndarray, cur: np.ndarray, action: list[float], collision: bool):
         """(reward, terms by name, terminated, truncated, dones fired) of one tick from the
-        rows (1, 79) before and after it (madsim.agents.batched: the envs' one code path)."""
+        rows (1, 79) before and after it (madsim.agents.component_batch: the envs' one code path)."""
         hit = _HIT if collision else _NO_HIT
         actions = [action]
         total, terms = weighted_sum(self.rewards.evaluate(_SLOT0, prev, cur, self._length, hit,

@@ -1,10 +1,10 @@
 """`make_vec`: N `MadrasEnv` episodes as one batched gymnasium `VectorEnv`.
 
 `MadrasVectorEnv` runs N independent copies of a one-learner scenario in one
-`madsim.physics.batch.WorldBatch`: every tick advances all running episodes (and computes their
+`madsim.physics.world_batch.WorldBatch`: every tick advances all running episodes (and computes their
 sensors) in one compiled call, the traffic cars of all episodes are driven by one compiled call
 (madsim.agents.traffic_fleet), the built-in rewards and dones are one compiled call each
-(madsim.agents.batched.ComponentBatch, the same code MadrasEnv runs), and the rest of the
+(madsim.agents.component_batch.ComponentBatch, the same code MadrasEnv runs), and the rest of the
 agent side (actions, the T-S PID, observations) is numpy over the episodes. Each episode keeps its own track, cars, traffic,
 random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
 `MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
@@ -34,7 +34,7 @@ from gymnasium.vector.utils import batch_space
 
 from madsim.agents import dones as D
 from madsim.agents import rewards as R
-from madsim.agents.batched import ActionMap, ComponentBatch, speed_gear_many, weighted_sum
+from madsim.agents.component_batch import ActionMap, ComponentBatch, speed_gear_many, weighted_sum
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
@@ -43,7 +43,7 @@ from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
 from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_config
 from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
-from madsim.physics.batch import WorldBatch
+from madsim.physics.world_batch import WorldBatch
 from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import (
     O_SX,

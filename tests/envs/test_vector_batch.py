@@ -11,7 +11,7 @@ import pytest
 from madsim.cars import load_car
 from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
 from madsim.physics import layout as L
-from madsim.physics.batch import WorldBatch
+from madsim.physics.world_batch import WorldBatch
 from madsim.physics.sensors import SensorSuite
 from madsim.physics.world import World
 from madsim.tracks import load_track

@@ -42,4 +42,4 @@ def test_a_fresh_process_loads_make_vecs_batch_loops_from_the_disk_cache():
     found = json.loads(out.strip().splitlines()[-1])
     assert found["misses"] == []
     for name in ("_advance", "_sense", "_race_positions", "_list_of", "_list_set"):
-        assert f"madsim.physics.batch.{name}" in found["hits"]
+        assert f"madsim.physics.world_batch.{name}" in found["hits"]
