@@ -39,58 +39,10 @@ the bad value and the nearest valid key.
 This module is the public door: it re-exports the schema, the loader and the spaces.
 """
 
-from madsim.envs.loader import check_config, config_to_dict, load_config, show_config
-from madsim.envs.schema import (
-    DEFAULT_CAR,
-    DEFAULT_DONES,
-    DEFAULT_REWARDS,
-    DEFAULT_TRACK,
-    TRAFFIC_BEHAVIOURS,
-    TRAFFIC_PARAMS,
-    ActionConfig,
-    AgentConfig,
-    CommConfig,
-    CurriculumConfig,
-    EpisodeConfig,
-    GridConfig,
-    ObservationConfig,
-    PidConfig,
-    RewardTerm,
-    ScenarioConfig,
-    StageConfig,
-    TrafficConfig,
-    generated_track_args,
-)
-from madsim.envs.spaces import MANUAL_GEARS, action_space, observation_size
+from madsim.envs import loader, schema, spaces
+from madsim.envs.loader import *  # noqa: F403 (this module re-exports the layer's public names)
+from madsim.envs.schema import *  # noqa: F403
+from madsim.envs.spaces import *  # noqa: F403
 from madsim.envs.validation import ConfigError, ConfigWarning
 
-__all__ = [
-    "DEFAULT_CAR",
-    "DEFAULT_DONES",
-    "DEFAULT_REWARDS",
-    "DEFAULT_TRACK",
-    "MANUAL_GEARS",
-    "TRAFFIC_BEHAVIOURS",
-    "TRAFFIC_PARAMS",
-    "ActionConfig",
-    "AgentConfig",
-    "CommConfig",
-    "ConfigError",
-    "ConfigWarning",
-    "CurriculumConfig",
-    "EpisodeConfig",
-    "GridConfig",
-    "ObservationConfig",
-    "PidConfig",
-    "RewardTerm",
-    "ScenarioConfig",
-    "StageConfig",
-    "TrafficConfig",
-    "action_space",
-    "check_config",
-    "config_to_dict",
-    "generated_track_args",
-    "load_config",
-    "observation_size",
-    "show_config",
-]
+__all__ = sorted({*loader.__all__, *schema.__all__, *spaces.__all__, "ConfigError", "ConfigWarning"})

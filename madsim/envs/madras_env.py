@@ -25,7 +25,8 @@ class MadrasEnv(CurriculumProgress, gymnasium.Env):
     A `Box` (float32) set by the agent's `action` config:
     - S-A-B (`space: SAB`): [steer, accel, brake], steer in [-1, 1] (left +); normalised: all
       in [-1, 1], pedals mapped by (a + 1) / 2; else accel and brake in [0, 1]. One action
-      drives one tick (0.02 s).
+      drives one tick (0.02 s; with `server.tick_schedule: torcs`, TORCS's own 0.02-or-0.022 s
+      driver calls, counted from each reset).
     - T-S (`space: TS`): [track position, speed] tracked by MADRaS's PID controller for
       `pid.latency` ticks per step; normalised: both in [-1, 1] (the track limits, and
       +-target_speed); else trackPos and km/h in [-max_speed_kmh, max_speed_kmh].
@@ -51,8 +52,9 @@ class MadrasEnv(CurriculumProgress, gymnasium.Env):
 
     ## Starting State
     `reset(seed=...)` fully determines the episode: track, car, traffic count and placements
-    (MADRaS's grid, or uniform draws within `initial_distance` / `initial_trackpos`) and the
-    noise. Cars start at rest; `server.init_wait` steps of braking may follow.
+    (MADRaS's grid, a TORCS race's grid from `server.grid` as `madsim serve --grid`, or uniform
+    draws within `initial_distance` / `initial_trackpos`) and the noise. Cars start at rest;
+    `server.init_wait` steps of braking may follow.
 
     ## Episode Termination
     Any configured done (RaceOver, LapCompleted, TimeOut, Collision, TurnBackward,
