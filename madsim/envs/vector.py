@@ -44,7 +44,7 @@ from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_c
 from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
 from madsim.physics.world_batch import WorldBatch
-from madsim.physics.schedule import make_clock
+from madsim.physics.schedule import TorcsClock
 from madsim.physics.sensors import (
     O_SX,
 )
@@ -60,6 +60,28 @@ def make_vec(config=None, num_envs: int = 1, **kwargs) -> MadrasVectorEnv:
     scenario stepped as one batch. Keywords: traffic_factory, autoreset_mode ("NextStep",
     "SameStep", "Disabled"), contact, fuel, damage, threads (see `MadrasVectorEnv`)."""
     return MadrasVectorEnv(config, num_envs, **kwargs)
+
+
+class _TorcsTicks:
+    """TORCS's driver-call schedule for many episodes at once: the sub-steps of each episode's
+    next tick, looked up by its ticks since reset (TorcsClock gives the same sequence after
+    every reset; the table grows from one clock as episodes get older)."""
+
+    def __init__(self, n: int):
+        self._clock = TorcsClock()
+        self._table = np.zeros(0, dtype=np.int64)
+        self.ticks = np.zeros(n, dtype=np.int64)      # per episode: ticks since its reset
+
+    def next(self, slots: np.ndarray) -> np.ndarray:
+        """(len(slots),) sub-steps of the coming tick of each episode in `slots`; counts it."""
+        t = self.ticks[slots]
+        need = int(t.max()) + 1 if t.size else 0
+        if need > self._table.size:
+            more = [self._clock.substeps() for _ in range(max(need, 2 * self._table.size, 256)
+                                                          - self._table.size)]
+            self._table = np.concatenate([self._table, np.array(more, dtype=np.int64)])
+        self.ticks[slots] = t + 1
+        return self._table[t]
 
 
 class _Stage:
@@ -179,8 +201,7 @@ class MadrasVectorEnv(VectorEnv):
                                 threads=threads, focus=needs_focus,
                                 angles_deg=RANGEFINDER_ANGLES_DEG)
         self.assets = AssetCache()
-        schedule = cfg.server.tick_schedule         # per episode its own clock, from its reset
-        self._clocks = None if schedule == "fixed" else [make_clock(schedule) for _ in range(n)]
+        self._torcs = _TorcsTicks(n) if cfg.server.tick_schedule == "torcs" else None
 
         # per episode
         self._np_random: list = [None] * n         # each episode's gymnasium Env.np_random
@@ -299,8 +320,8 @@ class MadrasVectorEnv(VectorEnv):
         where = placements(cfg, plan, track, scenario_rng)
         self.batch.start(e, (plan.track, plan.cars), track, cars, where,
                          noisy=cfg.server.observation_noise, rng=np.random.default_rng(obs_ss))
-        if self._clocks is not None:
-            self._clocks[e].reset()
+        if self._torcs is not None:
+            self._torcs.ticks[e] = 0
         k = plan.row(self.agent)
         self._row[e] = self.batch.offsets[e] + k
         self._length[e] = track.length
@@ -325,11 +346,11 @@ class MadrasVectorEnv(VectorEnv):
     def _tick(self, mask: np.ndarray) -> None:
         """One tick of the episodes in `mask`: 0.02 s, or each episode's next TORCS driver call
         (10 or 11 sub-steps; one batch call per length)."""
-        if self._clocks is None:
+        if self._torcs is None:
             self.batch.step(mask)
             return
         slots = np.flatnonzero(mask)
-        substeps = np.array([self._clocks[e].substeps() for e in slots.tolist()])
+        substeps = self._torcs.next(slots)
         for k in np.unique(substeps).tolist():
             part = np.zeros_like(mask)
             part[slots[substeps == k]] = True
