@@ -140,7 +140,7 @@ class EpisodeConfig:
     tick from each reset, so a real-TORCS trace can be replayed; ticks are still counted as
     0.02 s where time is derived from them (max_steps, AvgSpeed, traffic's clock).
     grid: the starting grid (`GridConfig`); None: TORCS's quickrace grid with distance_to_start
-    (grid.distance_to_start, when given, replaces distance_to_start)."""
+    (a distance to start is given either here or as grid.distance_to_start, not both)."""
 
     tracks: tuple[str, ...] = (DEFAULT_TRACK,)
     cars: tuple[str, ...] = (DEFAULT_CAR,)
