@@ -86,6 +86,15 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
         row[L.C_VISC] = max(c.central_viscosity, 0.0)
     driven = c.driven_wheels
     row[L.C_DRIVEN_F], row[L.C_DRIVEN_R] = float(driven[0]), float(driven[2])
+    for j in range(2):      # the axle differentials (spec 4.10); a non-driven axle has none
+        kind = c.differential_types[j] if driven[2 * j] else "NONE"
+        row[L.C_DKIND + j] = L.DIFF_KINDS.index(kind) if kind in L.DIFF_KINDS else L.DIFF_NONE
+        row[L.C_DSLIP + j] = c.diff_max_slip_bias[j]
+        row[L.C_DLOCK + j] = c.diff_locking_torque[j]
+        row[L.C_DLOCKB + j] = c.diff_locking_brake_torque[j]
+        row[L.C_DMIN + j] = c.diff_min_torque_bias[j]
+        row[L.C_DSPAN + j] = max(c.diff_max_torque_bias[j] - c.diff_min_torque_bias[j], 0.0)
+        row[L.C_DVISC + j] = c.diff_viscosity[j]
     wheel_i = c.wheel_inertia + np.repeat(c.axle_inertia, 2) / 2.0   # I_free per wheel (spec 4.10)
     row[L.C_IFREE_F] = wheel_i[0] + wheel_i[1]
     row[L.C_IFREE_R] = wheel_i[2] + wheel_i[3]
