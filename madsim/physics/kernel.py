@@ -547,20 +547,20 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
     d_done = math.nan
-    delta = cd = 1.0
-    sd = 0.0
+    cd0 = cd1 = 1.0
+    sd0 = sd1 = 0.0
     v2_max, r_max = vxg * vxg + vyg * vyg, abs(r)     # (start included: any integrator)
 
     for _ in range(nsub):
-        # --- steering: rate-limited towards steer * lock; one angle = mean Ackermann angle
+        # --- steering: rate-limited towards steer * lock; Ackermann (spec 4.2): the inner
+        # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|))
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
             d_done = d
-            delta = 0.0
-            if d != 0.0:
-                ta = math.tan(abs(d))
-                delta = math.copysign(0.5 * (abs(d) + math.atan(wb * ta / (wb + track_f * ta))), d)
-            cd, sd = math.cos(delta), math.sin(delta)
+            outer = math.copysign(math.atan(wb * math.tan(abs(d)) / (wb + track_f * math.tan(abs(d)))), d)
+            d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
+            cd0, sd0 = math.cos(d0), math.sin(d0)
+            cd1, sd1 = math.cos(d1), math.sin(d1)
 
         # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
         # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
@@ -653,8 +653,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
 
         # --- tyres (spec 4.9): each wheel its own slip from its own contact-point velocity
         # (body velocity + yaw rate x wheel position), forces by its load scale
-        ft0, fn0, dft0 = _tyre(vx - y0 * r, vy + a * r, cd, sd, w0 * rad0, bf, cf, ef, skid)
-        ft1, fn1, dft1 = _tyre(vx - y1 * r, vy + a * r, cd, sd, w1 * rad1, bf, cf, ef, skid)
+        ft0, fn0, dft0 = _tyre(vx - y0 * r, vy + a * r, cd0, sd0, w0 * rad0, bf, cf, ef, skid)
+        ft1, fn1, dft1 = _tyre(vx - y1 * r, vy + a * r, cd1, sd1, w1 * rad1, bf, cf, ef, skid)
         ft2, fn2, dft2 = _tyre(vx - y2 * r, vy - b * r, 1.0, 0.0, w2 * rad2, br, cr, er, skid)
         ft3, fn3, dft3 = _tyre(vx - y3 * r, vy - b * r, 1.0, 0.0, w3 * rad3, br, cr, er, skid)
 
@@ -683,10 +683,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # (predicted from the last step's acceleration) both enter, so a steadily accelerating
         # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)
         dvx = (ax_kin + r * vy) * dt
-        dvt_f = dvx * cd + (ay_kin - r * vx) * dt * sd
+        dvy = (ay_kin - r * vx) * dt
+        dvt0, dvt1 = dvx * cd0 + dvy * sd0, dvx * cd1 + dvy * sd1
         rk0, rk1, rk2, rk3 = react * k0 * rad0, react * k1 * rad1, react * k2 * rad2, react * k3 * rad3
         w0, w1 = _axle_spin(cp, i, 0, t_drive * share if driven_f else 0.0, w0, w1,
-                            rk0 * (ft0 - dft0 * dvt_f), rk1 * (ft1 - dft1 * dvt_f),
+                            rk0 * (ft0 - dft0 * dvt0), rk1 * (ft1 - dft1 * dvt1),
                             rk0 * dft0 * rad0, rk1 * dft1 * rad1, i_f, i_f, tb0, tb1, dt)
         w2, w3 = _axle_spin(cp, i, 1, t_drive * (1.0 - share) if driven_r else 0.0, w2, w3,
                             rk2 * (ft2 - dft2 * dvx), rk3 * (ft3 - dft3 * dvx),
@@ -720,9 +721,9 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             fuel = max(fuel - abs(teng) * we * cp[i, C_FUELCONS] * 1e-7 * dt, 0.0)
 
         # --- body forces (body frame): tyres, aero drag, wings, gravity along the road gradient
-        fx0, fx1 = (ft0 * cd - fn0 * sd) * k0, (ft1 * cd - fn1 * sd) * k1
+        fx0, fx1 = (ft0 * cd0 - fn0 * sd0) * k0, (ft1 * cd1 - fn1 * sd1) * k1
         fx2, fx3 = ft2 * k2, ft3 * k3
-        fy_f = (ft0 * sd + fn0 * cd) * k0 + (ft1 * sd + fn1 * cd) * k1
+        fy_f = (ft0 * sd0 + fn0 * cd0) * k0 + (ft1 * sd1 + fn1 * cd1) * k1
         fy_r = fn2 * k2 + fn3 * k3
         drag = -math.copysign(scx2 * vx2, vx)
         if vx > 0.0:
