@@ -403,66 +403,69 @@ def _brake_spin(w, dw):
 
 
 @numba.njit(inline="always", **_JIT)
-def _axle_spin(cp, i, j, drive, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
+def _axle_spin(cp, i, j, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
     """New spins (rad/s) of axle j's right (w0) and left (w1) wheels after one step through the
     axle's differential (TORCS's rules, spec 4.10; its wheel-0 = right, wheel-1 = left).
 
     drive: torque into the differential, N m (0 on a non-driven axle, whose kind is NONE: two
-    free wheels); t0, t1: each tyre's reaction torque at the old spin, N m; s0, s1 >= 0 its
-    slope d t / d w, N m s (the step is implicit in the tyre torques: linearised, exact for
-    the spider's coupling too); i0, i1: wheel inertias, kg m^2; b0, b1 >= 0: brake torques, N m.
-    FREE: drive / 2 each plus the spider torque (t1 - t0) / 2 (TORCS 1.3.7's form); LIMITED SLIP:
-    free, with the speed ratio |w0 - w1| / (|w0| + |w1|) clamped to max slip bias x
-    (1 - drive / locking torque) and the drive biased by the excess towards the slower wheel,
-    a spool beyond the locking input (or braking) torque; VISCOUS COUPLER: the right wheel gets
-    min bias while not slower, up to min + span (1 - exp(-visc |w0 - w1|)); SPOOL: one rigid
-    body (both wheels the right one's spin); NONE: no drive torque once the wheels turn."""
+    free wheels); fb: the part of the two tyre torques taken off the drive before the split
+    (4WD: 1 / centre ratio, since the axle's input is the centre differential's net output, in
+    which the axle's tyre torques come back divided by its ratio; 0 otherwise); t0, t1: each
+    tyre's reaction torque at the old spin, N m; s0, s1 >= 0 its slope d t / d w, N m s (the
+    step is implicit in the tyre torques: linearised, solved exactly for the two wheels'
+    coupling); i0, i1: wheel inertias, kg m^2; b0, b1 >= 0: brake torques, N m.
+    With d = drive - fb (t0 + t1): FREE: d / 2 each plus the spider torque (t1 - t0) / 2 (TORCS
+    1.3.7's form); LIMITED SLIP: a spool while d is above the locking input torque or below
+    minus the locking brake torque, else free, with the speed ratio |w0 - w1| / (|w0| + |w1|)
+    first clamped to max slip bias x (1 - d / locking torque) and d biased by the excess towards
+    the slower wheel; VISCOUS COUPLER: the right wheel gets min bias of d while not slower, up to
+    min + span (1 - exp(-visc |w0 - w1|)); SPOOL: one rigid body (both wheels the right one's
+    spin); NONE: no drive torque once the wheels turn. At rest (w0 = w1 = 0) d / 2 each."""
     kind = int(cp[i, C_DKIND + j])
     common = abs(w0) + abs(w1)
-    if common != 0.0 and kind == DIFF_LSD and (drive > cp[i, C_DLOCK + j]
-                                               or drive < -cp[i, C_DLOCKB + j]):
+    d_in = drive - fb * (t0 + t1)
+    if common != 0.0 and kind == DIFF_LSD and (d_in > cp[i, C_DLOCK + j] or d_in < -cp[i, C_DLOCKB + j]):
         kind = DIFF_SPOOL
     if kind == DIFF_SPOOL:
-        ii = i0 + i1 + dt * (s0 + s1)
-        w = _brake_spin(w0 + dt * (drive - t0 - t1) / ii, dt * (b0 + b1) / ii)
+        ii = i0 + i1 + dt * (1.0 + fb) * (s0 + s1)
+        w = _brake_spin(w0 + dt * (drive - (1.0 + fb) * (t0 + t1)) / ii, dt * (b0 + b1) / ii)
         return w, w
-    ie0, ie1 = i0 + dt * s0, i1 + dt * s1
-    if common == 0.0 or kind != DIFF_FREE and kind != DIFF_LSD:
-        d0 = d1 = 0.5 * drive
-        if common != 0.0:
-            if kind == DIFF_VISCOUS:
-                share = cp[i, C_DMIN + j]
-                if w0 < w1:
-                    share += (1.0 - math.exp(-abs(cp[i, C_DVISC + j] * (w0 - w1)))) * cp[i, C_DSPAN + j]
-                d0, d1 = drive * share, drive * (1.0 - share)
-            else:       # NONE
-                d0 = d1 = 0.0
-        w0 += dt * (d0 - t0) / ie0
-        w1 += dt * (d1 - t1) / ie1
-    else:
-        bias = 0.0
-        if kind == DIFF_LSD:
-            sign = 1.0 if drive >= 0.0 else -1.0
-            lock = cp[i, C_DLOCK + j] if drive >= 0.0 else -cp[i, C_DLOCKB + j]
-            ratio_max = cp[i, C_DSLIP + j] * (1.0 - drive / lock)
-            ratio = abs(w0 - w1) / common
-            if ratio > ratio_max:
-                dw = 0.5 * (ratio - ratio_max) * common
-                if w0 > w1:
-                    w0, w1, bias = w0 - dw, w1 + dw, -(ratio - ratio_max) * sign
-                else:
-                    w0, w1, bias = w0 + dw, w1 - dw, (ratio - ratio_max) * sign
-        # net torques d_k - t_k with the spider term, and the 2x2 implicit step in (dw0, dw1)
-        n0 = 0.5 * (drive * (1.0 + bias) + t1) - 1.5 * t0
-        n1 = 0.5 * (drive * (1.0 - bias) + t0) - 1.5 * t1
-        a00 = i0 / dt + 1.5 * s0
-        a11 = i1 / dt + 1.5 * s1
-        det = a00 * a11 - 0.25 * s0 * s1
-        dw0 = (n0 * a11 + 0.5 * s1 * n1) / det
-        dw1 = (n1 * a00 + 0.5 * s0 * n0) / det
-        w0 += dw0
-        w1 += dw1
-    return _brake_spin(w0, dt * b0 / ie0), _brake_spin(w1, dt * b1 / ie1)
+    # net torque on wheel k: a_k d + spider t_other - (1 + spider) t_k
+    a0 = a1 = 0.5
+    spider = 0.0
+    if common != 0.0:
+        if kind == DIFF_FREE or kind == DIFF_LSD:
+            spider = 0.5
+            if kind == DIFF_LSD:
+                lock = cp[i, C_DLOCK + j] if d_in >= 0.0 else -cp[i, C_DLOCKB + j]
+                ratio_max = cp[i, C_DSLIP + j] * (1.0 - d_in / lock)
+                ratio = abs(w0 - w1) / common
+                if ratio > ratio_max:
+                    dw = 0.5 * (ratio - ratio_max) * common
+                    bias = (ratio - ratio_max) * (1.0 if d_in >= 0.0 else -1.0)
+                    if w0 > w1:
+                        w0, w1, bias = w0 - dw, w1 + dw, -bias
+                    else:
+                        w0, w1 = w0 + dw, w1 - dw
+                    a0, a1 = 0.5 * (1.0 + bias), 0.5 * (1.0 - bias)
+        elif kind == DIFF_VISCOUS:
+            a0 = cp[i, C_DMIN + j]
+            if w0 < w1:
+                a0 += (1.0 - math.exp(-abs(cp[i, C_DVISC + j] * (w0 - w1)))) * cp[i, C_DSPAN + j]
+            a1 = 1.0 - a0
+        else:           # NONE
+            a0 = a1 = 0.0
+    c00, c01 = -(1.0 + spider) - a0 * fb, spider - a0 * fb
+    c10, c11 = spider - a1 * fb, -(1.0 + spider) - a1 * fb
+    n0 = a0 * drive + c00 * t0 + c01 * t1
+    n1 = a1 * drive + c10 * t0 + c11 * t1
+    # implicit: (i_k / dt) dw_k = n_k + sum_m c_km s_m dw_m
+    m00, m01 = i0 / dt - c00 * s0, -c01 * s1
+    m10, m11 = -c10 * s0, i1 / dt - c11 * s1
+    det = m00 * m11 - m01 * m10
+    w0 += (n0 * m11 - m01 * n1) / det
+    w1 += (m00 * n1 - m10 * n0) / det
+    return _brake_spin(w0, dt * b0 / (i0 + dt * s0)), _brake_spin(w1, dt * b1 / (i1 + dt * s1))
 
 
 @numba.njit(**_JIT)
@@ -518,7 +521,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     share_min = share = cp[i, C_FSHARE]
     visc, share_span = cp[i, C_VISC], cp[i, C_VISC_MAX] - share_min
     viscous = visc > 0.0
-    react = cp[i, C_REACT]
+    feedback = cp[i, C_REACT] - 1.0    # 4WD: 1 / centre ratio (see _axle_spin); else 0
     driven_f, driven_r = cp[i, C_DRIVEN_F] > 0.0, cp[i, C_DRIVEN_R] > 0.0
     limiter, maxi, tick, ieng = cp[i, C_LIMIT], cp[i, C_MAXI], cp[i, C_TICK], cp[i, C_IENG]
     ebrake, inv_span = cp[i, C_EBRAKE], 1.0 / (cp[i, C_MAXI] - cp[i, C_TICK])
@@ -685,11 +688,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         dvx = (ax_kin + r * vy) * dt
         dvy = (ay_kin - r * vx) * dt
         dvt0, dvt1 = dvx * cd0 + dvy * sd0, dvx * cd1 + dvy * sd1
-        rk0, rk1, rk2, rk3 = react * k0 * rad0, react * k1 * rad1, react * k2 * rad2, react * k3 * rad3
-        w0, w1 = _axle_spin(cp, i, 0, t_drive * share if driven_f else 0.0, w0, w1,
+        rk0, rk1, rk2, rk3 = k0 * rad0, k1 * rad1, k2 * rad2, k3 * rad3
+        w0, w1 = _axle_spin(cp, i, 0, t_drive * share if driven_f else 0.0, feedback, w0, w1,
                             rk0 * (ft0 - dft0 * dvt0), rk1 * (ft1 - dft1 * dvt1),
                             rk0 * dft0 * rad0, rk1 * dft1 * rad1, i_f, i_f, tb0, tb1, dt)
-        w2, w3 = _axle_spin(cp, i, 1, t_drive * (1.0 - share) if driven_r else 0.0, w2, w3,
+        w2, w3 = _axle_spin(cp, i, 1, t_drive * (1.0 - share) if driven_r else 0.0, feedback, w2, w3,
                             rk2 * (ft2 - dft2 * dvx), rk3 * (ft3 - dft3 * dvx),
                             rk2 * dft2 * rad2, rk3 * dft3 * rad3, i_r, i_r, tb2, tb3, dt)
 

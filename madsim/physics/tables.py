@@ -76,8 +76,9 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_TOP], row[L.C_SHIFT] = c.top_gear, c.shift_time
     row[L.C_FSHARE] = c.front_torque_share
     # TORCS's 4WD chain feeds each axle's tyre torque back twice: to the centre differential
-    # (divided by its ratio) and again to the axle differential, so the wheels feel it
-    # (1 + 1 / centre ratio) times (spec 4.10); one or two-wheel drive feels it once
+    # (divided by its ratio), whose net output drives the axle differential, and again to the
+    # axle differential, so the axle feels it (1 + 1 / centre ratio) times (spec 4.10; the
+    # kernel's _axle_spin takes the 1 / ratio off the axle's input); one or two-wheel drive once
     row[L.C_REACT] = 1.0 + 1.0 / c.final_drive if c.drive_type == "4WD" else 1.0
     if c.drive_type == "4WD" and c.differential_types[2] == "VISCOUS COUPLER":
         # the centre viscous coupler (spec 4.10): front share from min to max torque bias as the

@@ -24,8 +24,8 @@ def diff_table(kind, slip=0.03, lock=3000.0, lockb=990.0, dmin=0.05, dmax=0.8, v
     return cp
 
 
-def axle(cp, drive, w0, w1, t0=0.0, t1=0.0, s0=0.0, s1=0.0, i0=2.0, i1=2.0, b0=0.0, b1=0.0):
-    return kernel._axle_spin(cp, 0, 0, drive, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, DT)
+def axle(cp, drive, w0, w1, t0=0.0, t1=0.0, s0=0.0, s1=0.0, i0=2.0, i1=2.0, b0=0.0, b1=0.0, fb=0.0):
+    return kernel._axle_spin(cp, 0, 0, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, DT)
 
 
 def test_free_differential_splits_the_drive_and_passes_the_spider_torque():
@@ -49,6 +49,31 @@ def test_free_differential_step_is_implicit_in_both_tyre_torques():
     T0, T1 = t0 + s0 * dw0, t1 + s1 * dw1
     assert i0 * dw0 / DT == pytest.approx((D + T1 - T0) / 2 - T0, abs=1e-8)
     assert i1 * dw1 / DT == pytest.approx((D - T1 + T0) / 2 - T1, abs=1e-8)
+
+
+@pytest.mark.parametrize("kind", ["FREE", "LIMITED SLIP", "SPOOL"])
+def test_4wd_axle_takes_the_tyre_torques_fed_back_off_its_drive(kind):
+    # a 4WD axle's input is the centre differential's net output: its share of the drive less
+    # the axle's tyre torques over the centre ratio (fb = 1/ratio), then split as usual
+    cp = diff_table(kind)
+    D, t0, t1, fb, w = 900.0, 300.0, 100.0, 1.0 / 6.0, 40.0
+    w0, w1 = axle(cp, D, w, w, t0, t1, fb=fb)
+    d = D - fb * (t0 + t1)
+    if kind == "SPOOL":
+        assert w0 == w1 == pytest.approx(w + DT * (d - t0 - t1) / 4.0, rel=1e-14)
+    else:
+        assert w0 == pytest.approx(w + DT * ((d + t1 - t0) / 2 - t0) / 2.0, rel=1e-14)
+        assert w1 == pytest.approx(w + DT * ((d - t1 + t0) / 2 - t1) / 2.0, rel=1e-14)
+    # implicit in the fed-back torques too: the linearised equations hold at the new spins
+    s0, s1 = 3000.0, 1000.0
+    w0, w1 = axle(cp, D, w, w, t0, t1, s0, s1, fb=fb)
+    T0, T1 = t0 + s0 * (w0 - w), t1 + s1 * (w1 - w)
+    d = D - fb * (T0 + T1)
+    if kind == "SPOOL":
+        assert 4.0 * (w0 - w) / DT == pytest.approx(d - T0 - T1, abs=1e-8)
+    else:
+        assert 2.0 * (w0 - w) / DT == pytest.approx((d + T1 - T0) / 2 - T0, abs=1e-8)
+        assert 2.0 * (w1 - w) / DT == pytest.approx((d - T1 + T0) / 2 - T1, abs=1e-8)
 
 
 def test_spool_turns_both_wheels_as_one_body():
