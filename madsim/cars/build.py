@@ -71,6 +71,7 @@ def build_spec(tree: Section, *, name: str, display_name: str = "", category: st
     final_section = {"FWD": "Front Differential", "4WD": "Central Differential"}.get(drive_type,
                                                                                      "Rear Differential")
     ratios, inertias, efficiencies = _gears(r)
+    lock = r.axles("Differential", "locking input torque", 3000.0)
 
     w0 = static_wheel_loads(mass, front, front_right, rear_right)
     op_load = [r.num(f"{w} Wheel", "operating load", 1.2 * w0[i]) for i, w in enumerate(WHEELS)]
@@ -108,6 +109,13 @@ def build_spec(tree: Section, *, name: str, display_name: str = "", category: st
         central_min_torque_bias=r.num("Central Differential", "min torque bias", 0.05),
         central_max_torque_bias=r.num("Central Differential", "max torque bias", 0.8),
         central_viscosity=r.num("Central Differential", "viscosity factor", 1.0),
+        diff_min_torque_bias=r.axles("Differential", "min torque bias", 0.05),
+        diff_max_torque_bias=r.axles("Differential", "max torque bias", 0.8),
+        diff_viscosity=r.axles("Differential", "viscosity factor", 1.0),
+        diff_max_slip_bias=r.axles("Differential", "max slip bias", 0.03),
+        diff_locking_torque=lock,
+        diff_locking_brake_torque=[r.num(f"{a} Differential", "locking brake input torque", 0.33 * lock[i])
+                                   for i, a in enumerate(AXLES)],
         steer_lock=r.num("Steer", "steer lock", 0.43),
         max_steer_speed=r.num("Steer", "max steer speed", 1.0),
         brake_front_share=r.num("Brake System", "front-rear brake repartition", 0.5),

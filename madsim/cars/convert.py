@@ -178,6 +178,14 @@ def car_to_xml(spec: CarSpec) -> str:
             w.num("min torque bias", s.central_min_torque_bias)
             w.num("max torque bias", s.central_max_torque_bias)
             w.num("viscosity factor", s.central_viscosity)
+        else:
+            j = 0 if diff == "Front" else 1
+            w.num("min torque bias", s.diff_min_torque_bias[j])
+            w.num("max torque bias", s.diff_max_torque_bias[j])
+            w.num("viscosity factor", s.diff_viscosity[j])
+            w.num("max slip bias", s.diff_max_slip_bias[j])
+            w.num("locking input torque", s.diff_locking_torque[j])
+            w.num("locking brake input torque", s.diff_locking_brake_torque[j])
         w.close()
     w.section("Steer", [("steer lock", s.steer_lock, "rad"), ("max steer speed", s.max_steer_speed, "rad/s")])
     w.section("Brake System", [("front-rear brake repartition", s.brake_front_share),

@@ -44,8 +44,10 @@ def _wheels(doc: str):
     return field(metadata={"shape": (4,), "doc": doc})
 
 
-def _pair(doc: str):
-    return field(metadata={"shape": (2,), "doc": doc})
+def _pair(doc: str, default: tuple[float, float] | None = None):
+    if default is None:
+        return field(metadata={"shape": (2,), "doc": doc})
+    return field(default=default, metadata={"shape": (2,), "doc": doc})
 
 
 def _derived(doc: str, shape: tuple | None = None):
@@ -110,6 +112,16 @@ class CarSpec:
     central_min_torque_bias: float  # 4WD centre diff: front share while front not slower
     central_max_torque_bias: float  # 4WD centre diff: largest front share
     central_viscosity: float        # 4WD viscous coupler factor (1/(rad/s))
+    # the two axle differentials (front, rear), spec 4.10; TORCS's defaults
+    diff_min_torque_bias: np.ndarray = _pair("viscous coupler: right wheel's share while not slower", (0.05, 0.05))
+    diff_max_torque_bias: np.ndarray = _pair("viscous coupler: right wheel's largest share", (0.8, 0.8))
+    diff_viscosity: np.ndarray = _pair("viscous coupler factor, 1/(rad/s)", (1.0, 1.0))
+    diff_max_slip_bias: np.ndarray = _pair("limited slip: largest |w0 - w1| / (|w0| + |w1|) at no torque",
+                                           (0.03, 0.03))
+    diff_locking_torque: np.ndarray = _pair("limited slip: input torque above which it locks, N m",
+                                            (3000.0, 3000.0))
+    diff_locking_brake_torque: np.ndarray = _pair("limited slip: braking input torque above which it locks, "
+                                                  "N m (TORCS default 0.33 x locking torque)", (990.0, 990.0))
 
     # --- steering ------------------------------------------------------------------------------
     steer_lock: float               # steering angle at command 1, rad

@@ -31,13 +31,14 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_LAT_F, C_LAT_R, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
     C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_REACT, C_RIDE0,
     C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_VISC,
-    C_VISC_MAX, C_W0, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
+    C_VISC_MAX, C_W0, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
+    DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
     FLAG_START, P_A0, P_ARC, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV,
     P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND, P_LEN, P_R, P_S0, P_SA0, P_SAMESURF, P_SSURF_L,
     P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_X0, P_Y0,
     P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
     S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ,
-    S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_WF, S_WR,
+    S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_SPIN,
     S_X, S_Y, S_YAW, S_Z, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
     U_GEAR, U_STEER,
 )
@@ -395,6 +396,78 @@ def slipstream(st, cp, a, b, length):
         st[i, S_DRAGK] = k
 
 
+@numba.njit(inline="always", **_JIT)
+def _brake_spin(w, dw):
+    """Spin w after a brake's speed change dw >= 0: towards 0, never through it (spec 4.10)."""
+    return max(w - dw, 0.0) if w > 0.0 else min(w + dw, 0.0)
+
+
+@numba.njit(inline="always", **_JIT)
+def _axle_spin(cp, i, j, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
+    """New spins (rad/s) of axle j's right (w0) and left (w1) wheels after one step through the
+    axle's differential (TORCS's rules, spec 4.10; its wheel-0 = right, wheel-1 = left).
+
+    drive: torque into the differential, N m (0 on a non-driven axle, whose kind is NONE: two
+    free wheels); fb: the part of the two tyre torques taken off the drive before the split
+    (4WD: 1 / centre ratio, since the axle's input is the centre differential's net output, in
+    which the axle's tyre torques come back divided by its ratio; 0 otherwise); t0, t1: each
+    tyre's reaction torque at the old spin, N m; s0, s1 >= 0 its slope d t / d w, N m s (the
+    step is implicit in the tyre torques: linearised, solved exactly for the two wheels'
+    coupling); i0, i1: wheel inertias, kg m^2; b0, b1 >= 0: brake torques, N m.
+    With d = drive - fb (t0 + t1): FREE: d / 2 each plus the spider torque (t1 - t0) / 2 (TORCS
+    1.3.7's form); LIMITED SLIP: a spool while d is above the locking input torque or below
+    minus the locking brake torque, else free, with the speed ratio |w0 - w1| / (|w0| + |w1|)
+    first clamped to max slip bias x (1 - d / locking torque) and d biased by the excess towards
+    the slower wheel; VISCOUS COUPLER: the right wheel gets min bias of d while not slower, up to
+    min + span (1 - exp(-visc |w0 - w1|)); SPOOL: one rigid body (both wheels the right one's
+    spin); NONE: no drive torque once the wheels turn. At rest (w0 = w1 = 0) d / 2 each."""
+    kind = int(cp[i, C_DKIND + j])
+    common = abs(w0) + abs(w1)
+    d_in = drive - fb * (t0 + t1)
+    if common != 0.0 and kind == DIFF_LSD and (d_in > cp[i, C_DLOCK + j] or d_in < -cp[i, C_DLOCKB + j]):
+        kind = DIFF_SPOOL
+    if kind == DIFF_SPOOL:
+        ii = i0 + i1 + dt * (1.0 + fb) * (s0 + s1)
+        w = _brake_spin(w0 + dt * (drive - (1.0 + fb) * (t0 + t1)) / ii, dt * (b0 + b1) / ii)
+        return w, w
+    # net torque on wheel k: a_k d + spider t_other - (1 + spider) t_k
+    a0 = a1 = 0.5
+    spider = 0.0
+    if common != 0.0:
+        if kind == DIFF_FREE or kind == DIFF_LSD:
+            spider = 0.5
+            if kind == DIFF_LSD:
+                lock = cp[i, C_DLOCK + j] if d_in >= 0.0 else -cp[i, C_DLOCKB + j]
+                ratio_max = cp[i, C_DSLIP + j] * (1.0 - d_in / lock)
+                ratio = abs(w0 - w1) / common
+                if ratio > ratio_max:
+                    dw = 0.5 * (ratio - ratio_max) * common
+                    bias = (ratio - ratio_max) * (1.0 if d_in >= 0.0 else -1.0)
+                    if w0 > w1:
+                        w0, w1, bias = w0 - dw, w1 + dw, -bias
+                    else:
+                        w0, w1 = w0 + dw, w1 - dw
+                    a0, a1 = 0.5 * (1.0 + bias), 0.5 * (1.0 - bias)
+        elif kind == DIFF_VISCOUS:
+            a0 = cp[i, C_DMIN + j]
+            if w0 < w1:
+                a0 += (1.0 - math.exp(-abs(cp[i, C_DVISC + j] * (w0 - w1)))) * cp[i, C_DSPAN + j]
+            a1 = 1.0 - a0
+        else:           # NONE
+            a0 = a1 = 0.0
+    c00, c01 = -(1.0 + spider) - a0 * fb, spider - a0 * fb
+    c10, c11 = spider - a1 * fb, -(1.0 + spider) - a1 * fb
+    n0 = a0 * drive + c00 * t0 + c01 * t1
+    n1 = a1 * drive + c10 * t0 + c11 * t1
+    # implicit: (i_k / dt) dw_k = n_k + sum_m c_km s_m dw_m
+    m00, m01 = i0 / dt - c00 * s0, -c01 * s1
+    m10, m11 = -c10 * s0, i1 / dt - c11 * s1
+    det = m00 * m11 - m01 * m10
+    w0 += (n0 * m11 - m01 * n1) / det
+    w1 += (m00 * n1 - m10 * n0) / det
+    return _brake_spin(w0, dt * b0 / (i0 + dt * s0)), _brake_spin(w1, dt * b1 / (i1 + dt * s1))
+
+
 @numba.njit(**_JIT)
 def check_controls(controls, info):
     """Count non-finite controls: info[0] = count, info[1] = first bad flat index (or -1)."""
@@ -442,21 +515,23 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     a, b, wb, h = cp[i, C_A], cp[i, C_B], cp[i, C_L], cp[i, C_H]
     izz, mass_dry = cp[i, C_IZZ], cp[i, C_MASS]
     lock, steer_rate, track_f = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, cp[i, C_TF]
-    rad_f, rad_r = cp[i, C_RAD], cp[i, C_RAD + 2]
+    rad0, rad1, rad2, rad3 = cp[i, C_RAD], cp[i, C_RAD + 1], cp[i, C_RAD + 2], cp[i, C_RAD + 3]
     skid = cp[i, C_SKID]
     bf, cf, ef, br, cr, er = cp[i, C_BF], cp[i, C_CF], cp[i, C_EF], cp[i, C_BR], cp[i, C_CR], cp[i, C_ER]
     share_min = share = cp[i, C_FSHARE]
     visc, share_span = cp[i, C_VISC], cp[i, C_VISC_MAX] - share_min
     viscous = visc > 0.0
-    react = cp[i, C_REACT]
+    feedback = cp[i, C_REACT] - 1.0    # 4WD: 1 / centre ratio (see _axle_spin); else 0
     driven_f, driven_r = cp[i, C_DRIVEN_F] > 0.0, cp[i, C_DRIVEN_R] > 0.0
     limiter, maxi, tick, ieng = cp[i, C_LIMIT], cp[i, C_MAXI], cp[i, C_TICK], cp[i, C_IENG]
     ebrake, inv_span = cp[i, C_EBRAKE], 1.0 / (cp[i, C_MAXI] - cp[i, C_TICK])
     n_curve = int(cp[i, C_NCURVE])
     seg = 1
     p_brake = brake * cp[i, C_PMAX]
-    tb_f = (cp[i, C_KB] + cp[i, C_KB + 1]) * p_brake * cp[i, C_BRAKE_FRONT]
-    tb_r = (cp[i, C_KB + 2] + cp[i, C_KB + 3]) * p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
+    tb_f = p_brake * cp[i, C_BRAKE_FRONT]
+    tb_r = p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
+    tb0, tb1 = cp[i, C_KB] * tb_f, cp[i, C_KB + 1] * tb_f
+    tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
     wear = 1.0 + st[i, S_DAMAGE] / 10000.0
     dragk = st[i, S_DRAGK]
     scx2, wing_drag = cp[i, C_SCX2] * wear * dragk * dragk, cp[i, C_WINGDRAG] * wear
@@ -469,26 +544,26 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     x, y, yaw, r = st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R]
     vxg, vyg = st[i, S_VXG], st[i, S_VYG]
     ax_s, ay_s = st[i, S_AX], st[i, S_AY]
-    wf, wr, we = st[i, S_WF], st[i, S_WR], st[i, S_WE]
+    w0, w1, w2, w3, we = st[i, S_SPIN], st[i, S_SPIN + 1], st[i, S_SPIN + 2], st[i, S_SPIN + 3], st[i, S_WE]
     gear, shift_t, d = st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER]
     fuel = st[i, S_FUEL]
     fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
     d_done = math.nan
-    delta = cd = 1.0
-    sd = 0.0
+    cd0 = cd1 = 1.0
+    sd0 = sd1 = 0.0
     v2_max, r_max = vxg * vxg + vyg * vyg, abs(r)     # (start included: any integrator)
 
     for _ in range(nsub):
-        # --- steering: rate-limited towards steer * lock; one angle = mean Ackermann angle
+        # --- steering: rate-limited towards steer * lock; Ackermann (spec 4.2): the inner
+        # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|))
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
             d_done = d
-            delta = 0.0
-            if d != 0.0:
-                ta = math.tan(abs(d))
-                delta = math.copysign(0.5 * (abs(d) + math.atan(wb * ta / (wb + track_f * ta))), d)
-            cd, sd = math.cos(delta), math.sin(delta)
+            outer = math.copysign(math.atan(wb * math.tan(abs(d)) / (wb + track_f * math.tan(abs(d)))), d)
+            d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
+            cd0, sd0 = math.cos(d0), math.sin(d0)
+            cd1, sd1 = math.cos(d1), math.sin(d1)
 
         # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
         # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
@@ -578,16 +653,20 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             * math.exp(cp[i, C_LFK + 3] * fz3 / cp[i, C_OPLOAD + 3]))
         roll = (fz0 * st[i, S_ROLL] + fz1 * st[i, S_ROLL + 1] + fz2 * st[i, S_ROLL + 2]
                 + fz3 * st[i, S_ROLL + 3])
-        k_f = k0 + k1
-        k_r = k2 + k3
 
-        # --- tyres (spec 4.9): one slip per axle, forces per wheel by its load scale
-        ft_f, fn_f, dft_f = _tyre(vx, vy + a * r, cd, sd, wf * rad_f, bf, cf, ef, skid)
-        ft_r, fn_r, dft_r = _tyre(vx, vy - b * r, 1.0, 0.0, wr * rad_r, br, cr, er, skid)
+        # --- tyres (spec 4.9): each wheel its own slip from its own contact-point velocity
+        # (body velocity + yaw rate x wheel position), forces by its load scale
+        ft0, fn0, dft0 = _tyre(vx - y0 * r, vy + a * r, cd0, sd0, w0 * rad0, bf, cf, ef, skid)
+        ft1, fn1, dft1 = _tyre(vx - y1 * r, vy + a * r, cd1, sd1, w1 * rad1, bf, cf, ef, skid)
+        ft2, fn2, dft2 = _tyre(vx - y2 * r, vy - b * r, 1.0, 0.0, w2 * rad2, br, cr, er, skid)
+        ft3, fn3, dft3 = _tyre(vx - y3 * r, vy - b * r, 1.0, 0.0, w3 * rad3, br, cr, er, skid)
 
-        # --- 4WD centre viscous coupler (spec 4.10, TORCS's rule): the front axle gets the min
-        # torque bias while it turns at least as fast as the rear, more as it falls behind
+        # --- 4WD centre viscous coupler (spec 4.10, TORCS's rule) on the axles' mean spins: the
+        # front axle gets the min torque bias while it turns at least as fast as the rear, more
+        # as it falls behind
         if viscous:
+            wf = 0.5 * (w0 + w1)
+            wr = 0.5 * (w2 + w3)
             if wf == 0.0 and wr == 0.0:
                 share = 0.5
             elif wf >= wr:
@@ -595,36 +674,37 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             else:
                 share = share_min + (1.0 - math.exp(-visc * (wr - wf))) * share_span
 
-        # --- wheel spin (spec 4.10 inertias; implicit step; brakes stop but never reverse)
+        # --- wheel spin (spec 4.10 inertias; implicit step; brakes stop but never reverse),
+        # each axle through its differential
         if coupled:
-            i_f = cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F]
-            i_r = cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R]
+            i_f = 0.5 * (cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F])
+            i_r = 0.5 * (cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R])
         else:
-            i_f = cp[i, C_IFREE_F]
-            i_r = cp[i, C_IFREE_R]
+            i_f = 0.5 * cp[i, C_IFREE_F]
+            i_r = 0.5 * cp[i, C_IFREE_R]
         # linearised in the slip velocity vt - wR: the wheel's own change and the body's
         # (predicted from the last step's acceleration) both enter, so a steadily accelerating
         # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)
         dvx = (ax_kin + r * vy) * dt
-        dvt_f = dvx * cd + (ay_kin - r * vx) * dt * sd
-        ieff_f = i_f + dt * react * k_f * dft_f * rad_f * rad_f
-        ieff_r = i_r + dt * react * k_r * dft_r * rad_r * rad_r
-        wf += dt * (t_drive * share - react * k_f * rad_f * (ft_f - dft_f * dvt_f)) / ieff_f
-        wr += dt * (t_drive * (1.0 - share) - react * k_r * rad_r * (ft_r - dft_r * dvx)) / ieff_r
-        dwb = dt * tb_f / ieff_f
-        wf = max(wf - dwb, 0.0) if wf > 0.0 else min(wf + dwb, 0.0)
-        dwb = dt * tb_r / ieff_r
-        wr = max(wr - dwb, 0.0) if wr > 0.0 else min(wr + dwb, 0.0)
+        dvy = (ay_kin - r * vx) * dt
+        dvt0, dvt1 = dvx * cd0 + dvy * sd0, dvx * cd1 + dvy * sd1
+        rk0, rk1, rk2, rk3 = k0 * rad0, k1 * rad1, k2 * rad2, k3 * rad3
+        w0, w1 = _axle_spin(cp, i, 0, t_drive * share if driven_f else 0.0, feedback, w0, w1,
+                            rk0 * (ft0 - dft0 * dvt0), rk1 * (ft1 - dft1 * dvt1),
+                            rk0 * dft0 * rad0, rk1 * dft1 * rad1, i_f, i_f, tb0, tb1, dt)
+        w2, w3 = _axle_spin(cp, i, 1, t_drive * (1.0 - share) if driven_r else 0.0, feedback, w2, w3,
+                            rk2 * (ft2 - dft2 * dvx), rk3 * (ft3 - dft3 * dvx),
+                            rk2 * dft2 * rad2, rk3 * dft3 * rad3, i_r, i_r, tb2, tb3, dt)
 
         # --- engine speed (spec 4.10): follows the driven wheels through the clutch, else free
         we_free = we + teng / ieng * dt
         if coupled:
             if driven_f and driven_r:
-                w_axle = 0.5 * (wf + wr)
+                w_axle = 0.25 * (w0 + w1 + w2 + w3)
             elif driven_f:
-                w_axle = wf
+                w_axle = 0.5 * (w0 + w1)
             else:
-                w_axle = wr
+                w_axle = 0.5 * (w2 + w3)
             c4 = c * c * c * c
             we = w_axle * ratio * c4 + we_free * (1.0 - c4)
             if we > maxi:
@@ -632,9 +712,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
                 if w_axle * ratio > maxi:        # over-revving: the engine holds the wheels back
                     scale = maxi / (w_axle * ratio)
                     if driven_f:
-                        wf *= scale
+                        w0 *= scale
+                        w1 *= scale
                     if driven_r:
-                        wr *= scale
+                        w2 *= scale
+                        w3 *= scale
         else:
             we = we_free
         we = min(max(we, tick), maxi)
@@ -642,17 +724,18 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             fuel = max(fuel - abs(teng) * we * cp[i, C_FUELCONS] * 1e-7 * dt, 0.0)
 
         # --- body forces (body frame): tyres, aero drag, wings, gravity along the road gradient
-        kf_x = ft_f * cd - fn_f * sd
-        fy_f = (ft_f * sd + fn_f * cd) * k_f
-        fy_r = fn_r * k_r
+        fx0, fx1 = (ft0 * cd0 - fn0 * sd0) * k0, (ft1 * cd1 - fn1 * sd1) * k1
+        fx2, fx3 = ft2 * k2, ft3 * k3
+        fy_f = (ft0 * sd0 + fn0 * cd0) * k0 + (ft1 * sd1 + fn1 * cd1) * k1
+        fy_r = fn2 * k2 + fn3 * k3
         drag = -math.copysign(scx2 * vx2, vx)
         if vx > 0.0:
             drag += wing_drag * vx2
-        fx_ng = kf_x * k_f + ft_r * k_r + drag
+        fx_ng = fx0 + fx1 + fx2 + fx3 + drag
         fy_ng = fy_f + fy_r
         fx = fx_ng - m * G * gbx      # gravity along the road: m g x height difference / distance
         fy = fy_ng - m * G * gby      # between the wheels (spec 4.11), i.e. the gradient, not sin
-        mz = a * fy_f - b * fy_r - kf_x * (k0 * y0 + k1 * y1) - ft_r * (k2 * y2 + k3 * y3)
+        mz = a * fy_f - b * fy_r - (fx0 * y0 + fx1 * y1 + fx2 * y2 + fx3 * y3)
 
         # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
         vg = math.sqrt(vxg * vxg + vyg * vyg)
@@ -678,7 +761,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_VX] = vxg * cy + vyg * sy
     st[i, S_VY] = vyg * cy - vxg * sy
     st[i, S_AX], st[i, S_AY] = ax_s, ay_s
-    st[i, S_WF], st[i, S_WR], st[i, S_WE] = wf, wr, we
+    st[i, S_SPIN], st[i, S_SPIN + 1], st[i, S_SPIN + 2], st[i, S_SPIN + 3] = w0, w1, w2, w3
+    st[i, S_WE] = we
     st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER] = gear, shift_t, d
     st[i, S_FUEL] = fuel
     st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3] = fz0, fz1, fz2, fz3

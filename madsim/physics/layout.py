@@ -16,7 +16,7 @@ def _enum(names: str) -> tuple[str, ...]:
 # solver can modify in place.
 STATE_COLUMNS = _enum(
     "x y z yaw vx_g vy_g yaw_rate vx vy ax ay "   # pose, global velocity, body velocity, body specific force
-    "spin_f spin_r engine_speed gear shift_timer steer_angle fuel damage "
+    "spin_fr spin_fl spin_rr spin_rl engine_speed gear shift_timer steer_angle fuel damage "
     "s n piece laps back_crossings lap_start_time cur_lap_time last_lap_time best_lap_time "
     "dist_raced time "
     "fz_fr fz_fl fz_rr fz_rl fric_fr fric_fl fric_rr fric_rl roll_fr roll_fl roll_rr roll_rl "
@@ -31,8 +31,8 @@ STATE_DOC = {
     "vy": "body-frame lateral velocity (left +), m/s",
     "ax": "body-frame longitudinal specific force of tyres + aero + rolling (no gravity), m/s^2",
     "ay": "body-frame lateral specific force (no gravity), m/s^2",
-    "spin_f": "front wheel spin (both front wheels), rad/s",
-    "spin_r": "rear wheel spin (both rear wheels), rad/s",
+    "spin_fr": "wheel spin front right, rad/s (each wheel its own, through its axle's differential)",
+    "spin_fl": "rad/s", "spin_rr": "rad/s", "spin_rl": "rad/s",
     "engine_speed": "rad/s (SCR rpm sensor = this x 10)",
     "gear": "engaged gear, -1 reverse, 0 neutral, 1..top", "shift_timer": "s left of the shift-time torque cut",
     "steer_angle": "actual front steering angle after the rate limit, rad (left +)",
@@ -54,9 +54,10 @@ STATE_DOC = {
 }
 S = {name: i for i, name in enumerate(STATE_COLUMNS)}
 (S_X, S_Y, S_Z, S_YAW, S_VXG, S_VYG, S_R, S_VX, S_VY, S_AX, S_AY,
- S_WF, S_WR, S_WE, S_GEAR, S_SHIFT, S_STEER, S_FUEL, S_DAMAGE,
+ S_SPIN, _S_SPIN1, _S_SPIN2, _S_SPIN3, S_WE, S_GEAR, S_SHIFT, S_STEER, S_FUEL, S_DAMAGE,
  S_S, S_N, S_PIECE, S_LAPS, S_BACK, S_LAPSTART, S_CURLAP, S_LASTLAP, S_BESTLAP,
- S_DIST, S_TIME) = range(30)
+ S_DIST, S_TIME) = range(32)
+# S_SPIN: 4 wheel spins follow in wheel order
 S_FZ = S["fz_fr"]          # 4 wheel loads follow in wheel order
 S_FRIC = S["fric_fr"]      # 4 frictions
 S_ROLL = S["roll_fr"]      # 4 rolling resistances
@@ -95,7 +96,17 @@ C_RIDEMAX = _n + 48   # highest ride height: suspension course / bellcrank, m
 C_RATIO = _n + 52                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
 C_IDRIVE_F = C_RATIO + MAX_GEAR_SLOTS   # driven front-axle inertia per slot, kg m^2
 C_IDRIVE_R = C_IDRIVE_F + MAX_GEAR_SLOTS
-N_CAR = C_IDRIVE_R + MAX_GEAR_SLOTS
+# per-axle differential blocks of 2 (front, rear; spec 4.10)
+C_DKIND = C_IDRIVE_R + MAX_GEAR_SLOTS   # DIFF_NONE .. DIFF_SPOOL below; non-driven axles: DIFF_NONE
+C_DSLIP = C_DKIND + 2     # limited slip: max slip bias (speed ratio |w0 - w1| / (|w0| + |w1|))
+C_DLOCK = C_DSLIP + 2     # limited slip: locking input torque, N m (spool above it)
+C_DLOCKB = C_DLOCK + 2    # limited slip: locking brake input torque, N m (spool below minus it)
+C_DMIN = C_DLOCKB + 2     # viscous coupler: min torque bias of the right wheel
+C_DSPAN = C_DMIN + 2      # viscous coupler: max - min torque bias
+C_DVISC = C_DSPAN + 2     # viscous coupler: viscosity factor, 1/(rad/s)
+N_CAR = C_DVISC + 2
+DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
+DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,
  C_SKID, C_BF, C_CF, C_EF, C_BR, C_CR, C_ER,
  C_TICK, C_LIMIT, C_MAXI, C_IENG, C_EBRAKE, C_FUELCONS, C_NCURVE,

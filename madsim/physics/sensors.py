@@ -152,10 +152,8 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
         else:
             for j in range(19):
                 row[O_TRACK + j] = -1.0
-        row[O_WSPIN] = st[i, L.S_WF]
-        row[O_WSPIN + 1] = st[i, L.S_WF]
-        row[O_WSPIN + 2] = st[i, L.S_WR]
-        row[O_WSPIN + 3] = st[i, L.S_WR]
+        for k in range(4):
+            row[O_WSPIN + k] = st[i, L.S_SPIN + k]
         row[O_Z] = st[i, L.S_Z] - st[i, L.S_ROADZ]
         for j in range(5):
             row[O_FOCUS + j] = -1.0

@@ -76,8 +76,9 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_TOP], row[L.C_SHIFT] = c.top_gear, c.shift_time
     row[L.C_FSHARE] = c.front_torque_share
     # TORCS's 4WD chain feeds each axle's tyre torque back twice: to the centre differential
-    # (divided by its ratio) and again to the axle differential, so the wheels feel it
-    # (1 + 1 / centre ratio) times (spec 4.10); one or two-wheel drive feels it once
+    # (divided by its ratio), whose net output drives the axle differential, and again to the
+    # axle differential, so the axle feels it (1 + 1 / centre ratio) times (spec 4.10; the
+    # kernel's _axle_spin takes the 1 / ratio off the axle's input); one or two-wheel drive once
     row[L.C_REACT] = 1.0 + 1.0 / c.final_drive if c.drive_type == "4WD" else 1.0
     if c.drive_type == "4WD" and c.differential_types[2] == "VISCOUS COUPLER":
         # the centre viscous coupler (spec 4.10): front share from min to max torque bias as the
@@ -86,6 +87,15 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
         row[L.C_VISC] = max(c.central_viscosity, 0.0)
     driven = c.driven_wheels
     row[L.C_DRIVEN_F], row[L.C_DRIVEN_R] = float(driven[0]), float(driven[2])
+    for j in range(2):      # the axle differentials (spec 4.10); a non-driven axle has none
+        kind = c.differential_types[j] if driven[2 * j] else "NONE"
+        row[L.C_DKIND + j] = L.DIFF_KINDS.index(kind) if kind in L.DIFF_KINDS else L.DIFF_NONE
+        row[L.C_DSLIP + j] = c.diff_max_slip_bias[j]
+        row[L.C_DLOCK + j] = c.diff_locking_torque[j]
+        row[L.C_DLOCKB + j] = c.diff_locking_brake_torque[j]
+        row[L.C_DMIN + j] = c.diff_min_torque_bias[j]
+        row[L.C_DSPAN + j] = max(c.diff_max_torque_bias[j] - c.diff_min_torque_bias[j], 0.0)
+        row[L.C_DVISC + j] = c.diff_viscosity[j]
     wheel_i = c.wheel_inertia + np.repeat(c.axle_inertia, 2) / 2.0   # I_free per wheel (spec 4.10)
     row[L.C_IFREE_F] = wheel_i[0] + wheel_i[1]
     row[L.C_IFREE_R] = wheel_i[2] + wheel_i[3]

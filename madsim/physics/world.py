@@ -197,11 +197,11 @@ class World:
         st[rows, L.S_X], st[rows, L.S_Y], st[rows, L.S_YAW] = x, y, yaw
         st[rows, L.S_DRAGK] = 1.0
         st[rows, L.S_VXG], st[rows, L.S_VYG] = speed * np.cos(yaw), speed * np.sin(yaw)
-        st[rows, L.S_WF] = speed / cp[rows, L.C_RAD]
-        st[rows, L.S_WR] = speed / cp[rows, L.C_RAD + 2]
+        for k in range(4):
+            st[rows, L.S_SPIN + k] = speed / cp[rows, L.C_RAD + k]
         st[rows, L.S_GEAR] = g
         ratio = cp[rows, L.C_RATIO + g + 1]
-        driven_w = np.where(cp[rows, L.C_DRIVEN_R] > 0, st[rows, L.S_WR], st[rows, L.S_WF])
+        driven_w = np.where(cp[rows, L.C_DRIVEN_R] > 0, st[rows, L.S_SPIN + 2], st[rows, L.S_SPIN])
         st[rows, L.S_WE] = np.clip(np.abs(driven_w * ratio), cp[rows, L.C_TICK], cp[rows, L.C_MAXI])
         for k in range(4):   # static loads of the dynamic mass
             st[rows, L.S_FZ + k] = (cp[rows, L.C_W0 + k] * (cp[rows, L.C_MASS] + st[rows, L.S_FUEL])
@@ -311,9 +311,8 @@ class World:
 
     @property
     def wheel_spin(self) -> np.ndarray:
-        """(N, 4) wheel spin rad/s in wheel order FR, FL, RR, RL (per axle, duplicated)."""
-        st = self.state
-        return np.stack([st[:, L.S_WF], st[:, L.S_WF], st[:, L.S_WR], st[:, L.S_WR]], axis=1)
+        """(N, 4) wheel spin rad/s in wheel order FR, FL, RR, RL (a copy)."""
+        return self.state[:, L.S_SPIN:L.S_SPIN + 4].copy()
 
     @property
     def wheel_load(self) -> np.ndarray:

@@ -70,7 +70,7 @@ def test_reused_space_steps_bit_identically(fresh):
     assert np.array_equal(again.state, fresh.state)
     assert np.array_equal(again.damage, fresh.damage)
     assert again._solver.stats == fresh._solver.stats
-    assert np.all(fresh.hits > 10)             # wall hits and car-car contacts on the way
+    assert np.all(fresh.hits >= 5)             # wall hits and car-car contacts on the way
 
 
 def test_two_worlds_on_one_track_at_once(fresh):

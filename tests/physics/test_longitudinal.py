@@ -188,7 +188,7 @@ def test_engaging_a_gear_from_rest_drops_the_engine_to_the_wheels_then_free_revs
     run(w, 50, np.array([[0.0, 1.0, 1.0, 0, 0.0]]))          # rev in neutral, held by the brakes
     assert w.engine_speed[0] > 0.8 * car.revs_limiter
     w.step(np.array([[0.0, 1.0, 0.0, 1, 0.0]]), substeps=1)
-    w_axle = float(w.state[0, L.S_WR] if car.drive_type == "RWD" else w.state[0, L.S_WF])
+    w_axle = float(w.wheel_spin[0, 2:].mean() if car.drive_type == "RWD" else w.wheel_spin[0, :2].mean())
     we = float(w.engine_speed[0])
     assert we == pytest.approx(max(car.tickover, w_axle * car.overall_ratio(1)), rel=1e-12)
     assert we < 1.5 * car.tickover

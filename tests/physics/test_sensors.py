@@ -102,7 +102,7 @@ def test_units_and_wheel_order(track):
     st = world.state
     assert f.speedX[0] == pytest.approx(st[0, L.S_VX] * 3.6)
     assert f.rpm[0] == pytest.approx(st[0, L.S_WE] * 10)
-    assert list(f.wheelSpinVel[0]) == [st[0, L.S_WF], st[0, L.S_WF], st[0, L.S_WR], st[0, L.S_WR]]
+    assert list(f.wheelSpinVel[0]) == [st[0, L.S_SPIN + k] for k in range(4)]
     assert f.gear.dtype == np.int64 and f.gear[0] == 2
     assert f.distFromStart[0] == pytest.approx(st[0, L.S_S])
 
