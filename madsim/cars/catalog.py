@@ -106,7 +106,7 @@ def car_info(name_or_path: str | os.PathLike | CarSpec) -> dict:
         "front_torque_share": round(s.front_torque_share, 4),
         "tyre_radius_front_m": round(float(r[:2].mean()), 4),
         "tyre_radius_rear_m": round(float(r[2:].mean()), 4),
-        "tyre_mu": [round(float(x), 4) for x in s.tire_mu],
+        "tyre_mu": [round(float(x), 4) for x in s.tyre_mu],
         "steer_lock_deg": round(s.steer_lock * 180.0 / 3.141592653589793, 2),
         "drag_scx2": round(s.scx2, 4),
         "top_gear": s.top_gear,

@@ -27,7 +27,10 @@ from madsim.cars.spec import AXLES, WHEELS, CarSpec
 __all__ = ["car_to_json", "car_from_json", "car_to_xml", "JSON_FORMAT"]
 
 JSON_FORMAT = "madsim-car"
-JSON_VERSION = 1
+JSON_VERSION = 2
+# Version 1 spelt the tyre fields "tire_*"; its documents still load (the keys renamed on read).
+_V1_RENAMED = {f"tire_{k}": f"tyre_{k}" for k in
+               ("width", "aspect", "mu", "stiffness", "dynamic_friction", "elasticity")}
 
 
 def _input_fields() -> list[str]:
@@ -58,12 +61,14 @@ def car_from_json(text: str, *, source: str = "<json>") -> CarSpec:
     if not isinstance(doc, dict) or doc.get("format") != JSON_FORMAT:
         raise CarError(f"not a madsim car JSON document (expected \"format\": \"{JSON_FORMAT}\")",
                        file=source, element="format")
-    if doc.get("version") != JSON_VERSION:
-        raise CarError(f"unsupported version {doc.get('version')!r} (this madsim reads {JSON_VERSION})",
+    if doc.get("version") not in (1, JSON_VERSION):
+        raise CarError(f"unsupported version {doc.get('version')!r} (this madsim reads 1 and {JSON_VERSION})",
                        file=source, element="version")
     data = doc.get("car")
     if not isinstance(data, dict):
         raise CarError("'car' must be an object", file=source, element="car")
+    if doc["version"] == 1:
+        data = {_V1_RENAMED.get(key, key): value for key, value in data.items()}
     valid = _input_fields()
     for key in data:
         if key not in valid:
@@ -198,9 +203,9 @@ def car_to_xml(spec: CarSpec) -> str:
     for i, wheel in enumerate(WHEELS):
         w.section(f"{wheel} Wheel", [
             ("ypos", s.wheel_ypos[i], "m"), ("rim diameter", s.rim_diameter[i], "m"),
-            ("tire width", s.tire_width[i], "m"), ("tire height-width ratio", s.tire_aspect[i]),
-            ("mu", s.tire_mu[i]), ("stiffness", s.tire_stiffness[i]),
-            ("dynamic friction", s.tire_dynamic_friction[i]), ("elasticity factor", s.tire_elasticity[i]),
+            ("tire width", s.tyre_width[i], "m"), ("tire height-width ratio", s.tyre_aspect[i]),
+            ("mu", s.tyre_mu[i]), ("stiffness", s.tyre_stiffness[i]),
+            ("dynamic friction", s.tyre_dynamic_friction[i]), ("elasticity factor", s.tyre_elasticity[i]),
             ("load factor min", s.load_factor_min[i]), ("load factor max", s.load_factor_max[i]),
             ("operating load", s.operating_load[i], "N"), ("camber", s.camber[i], "rad"),
             ("toe", s.toe[i], "rad"), ("inertia", s.wheel_inertia[i], "kg.m2"),

@@ -137,12 +137,12 @@ class CarSpec:
 
     # --- wheels and tyres -----------------------------------------------------------------------
     rim_diameter: np.ndarray = _wheels("m")
-    tire_width: np.ndarray = _wheels("m")
-    tire_aspect: np.ndarray = _wheels("tyre height/width ratio")
-    tire_mu: np.ndarray = _wheels("tyre friction coefficient")
-    tire_stiffness: np.ndarray = _wheels("Ca, magic-formula stiffness")
-    tire_dynamic_friction: np.ndarray = _wheels("RF, clamped to [0.1, 1]")
-    tire_elasticity: np.ndarray = _wheels("EF, clamped to <= 1")
+    tyre_width: np.ndarray = _wheels("m")
+    tyre_aspect: np.ndarray = _wheels("tyre height/width ratio")
+    tyre_mu: np.ndarray = _wheels("tyre friction coefficient")
+    tyre_stiffness: np.ndarray = _wheels("Ca, magic-formula stiffness")
+    tyre_dynamic_friction: np.ndarray = _wheels("RF, clamped to [0.1, 1]")
+    tyre_elasticity: np.ndarray = _wheels("EF, clamped to <= 1")
     load_factor_min: np.ndarray = _wheels("lfMin, clamped to <= 0.8")
     load_factor_max: np.ndarray = _wheels("lfMax, clamped to >= 1.6")
     operating_load: np.ndarray = _wheels("N; default 1.2 x static wheel load")
@@ -243,11 +243,11 @@ class CarSpec:
         xs = np.array([self.front_axle_x] * 2 + [self.rear_axle_x] * 2) - cg_x
         s("wheel_pos", _ro(np.stack([xs, y - cg_y], axis=1)))
         s("static_wheel_load", _ro(static_wheel_loads(m, f, frl, rrl)))
-        s("wheel_radius", _ro(self.rim_diameter / 2.0 + self.tire_width * self.tire_aspect))
-        c = 2.0 - (2.0 / math.pi) * np.arcsin(self.tire_dynamic_friction)
+        s("wheel_radius", _ro(self.rim_diameter / 2.0 + self.tyre_width * self.tyre_aspect))
+        c = 2.0 - (2.0 / math.pi) * np.arcsin(self.tyre_dynamic_friction)
         s("mf_c", _ro(c))
-        s("mf_b", _ro(self.tire_stiffness / c))
-        s("mf_e", _ro(self.tire_elasticity.copy()))
+        s("mf_b", _ro(self.tyre_stiffness / c))
+        s("mf_e", _ro(self.tyre_elasticity.copy()))
         lf_min, lf_max = self.load_factor_min, self.load_factor_max
         s("load_factor_k", _ro(np.log((1.0 - lf_min) / (lf_max - lf_min))))
         s("brake_kb", _ro(self.brake_disk_diameter / 2.0 * self.brake_piston_area * self.brake_mu))
@@ -449,10 +449,10 @@ def _validate(c: CarSpec) -> None:
     need(0 <= c.brake_front_share <= 1, "Brake System/front-rear brake repartition",
          "brake repartition must be in [0, 1]")
     need(c.brake_max_pressure >= 0, "Brake System/max pressure", "max pressure must be >= 0")
-    radius = c.rim_diameter / 2.0 + c.tire_width * c.tire_aspect
-    for attr, ok in (("rim diameter", radius > 0), ("mu", c.tire_mu > 0),
-                     ("stiffness", c.tire_stiffness > 0), ("operating load", c.operating_load > 0),
-                     ("dynamic friction", (c.tire_dynamic_friction >= 0.1) & (c.tire_dynamic_friction <= 1)),
+    radius = c.rim_diameter / 2.0 + c.tyre_width * c.tyre_aspect
+    for attr, ok in (("rim diameter", radius > 0), ("mu", c.tyre_mu > 0),
+                     ("stiffness", c.tyre_stiffness > 0), ("operating load", c.operating_load > 0),
+                     ("dynamic friction", (c.tyre_dynamic_friction >= 0.1) & (c.tyre_dynamic_friction <= 1)),
                      ("load factor min", c.load_factor_min < 1.0),
                      ("load factor max", c.load_factor_max > 1.0)):
         i = int(np.argmin(ok))
@@ -461,7 +461,7 @@ def _validate(c: CarSpec) -> None:
 
 
 def _wheel_value(c: CarSpec, attr: str, i: int) -> str:
-    table = {"rim diameter": c.rim_diameter, "mu": c.tire_mu, "stiffness": c.tire_stiffness,
-             "operating load": c.operating_load, "dynamic friction": c.tire_dynamic_friction,
+    table = {"rim diameter": c.rim_diameter, "mu": c.tyre_mu, "stiffness": c.tyre_stiffness,
+             "operating load": c.operating_load, "dynamic friction": c.tyre_dynamic_friction,
              "load factor min": c.load_factor_min, "load factor max": c.load_factor_max}
     return f"{table[attr][i]:g}"

@@ -115,7 +115,7 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_LAT_F], row[L.C_LAT_R] = lateral_transfer_shares(c)
     row[L.C_WY:L.C_WY + 4] = c.wheel_pos[:, 1]
     row[L.C_RAD:L.C_RAD + 4] = c.wheel_radius
-    row[L.C_KMU:L.C_KMU + 4] = c.tire_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))
+    row[L.C_KMU:L.C_KMU + 4] = c.tyre_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))
     row[L.C_OPLOAD:L.C_OPLOAD + 4] = c.operating_load
     row[L.C_LFMIN:L.C_LFMIN + 4] = c.load_factor_min
     row[L.C_LFMAX:L.C_LFMAX + 4] = c.load_factor_max

@@ -124,7 +124,7 @@ def test_magic_formula_constants_spec_3(torcs, name, B, C, E):
     assert s.mf_b == pytest.approx([B] * 4, abs=6e-4)
     assert s.mf_c == pytest.approx([C] * 4, abs=6e-5)
     assert s.mf_e == pytest.approx([E] * 4, abs=1e-6)
-    assert np.sin(s.mf_c * np.pi / 2) == pytest.approx(s.tire_dynamic_friction, abs=1e-6)
+    assert np.sin(s.mf_c * np.pi / 2) == pytest.approx(s.tyre_dynamic_friction, abs=1e-6)
 
 
 @pytest.mark.parametrize("name, values", [

@@ -57,8 +57,8 @@ def test_psi_deg_percent_lengths(unit_car):
     assert unit_car.steer_lock == pytest.approx(math.radians(30), rel=1e-6)
     assert unit_car.max_steer_speed == pytest.approx(math.pi, rel=1e-6)
     assert unit_car.camber == pytest.approx([math.radians(-2)] * 4, rel=1e-6)
-    assert unit_car.tire_aspect == pytest.approx([0.5] * 4)
-    assert unit_car.tire_dynamic_friction == pytest.approx([0.9] * 4, rel=1e-6)
+    assert unit_car.tyre_aspect == pytest.approx([0.5] * 4)
+    assert unit_car.tyre_dynamic_friction == pytest.approx([0.9] * 4, rel=1e-6)
     assert unit_car.ride_height == pytest.approx([0.11] * 4, rel=1e-6)
     assert unit_car.track_front == pytest.approx(5 * 0.304801, rel=1e-6)   # ft
     assert unit_car.wheel_radius == pytest.approx([0.2032 + 0.125] * 4, rel=1e-6)
@@ -78,8 +78,8 @@ def test_simuv2_defaults_when_absent(unit_car):
     assert (s.engine_inertia, s.engine_brake_coeff, s.fuel_cons_factor) == pytest.approx((0.2423, 0.33, 0.0622))
     assert (s.shift_time, s.final_drive) == pytest.approx((0.2, 1.0))
     assert s.brake_front_share == 0.5
-    assert s.tire_mu == pytest.approx([1.0] * 4) and s.tire_stiffness == pytest.approx([30.0] * 4)
-    assert s.tire_elasticity == pytest.approx([0.7] * 4)
+    assert s.tyre_mu == pytest.approx([1.0] * 4) and s.tyre_stiffness == pytest.approx([30.0] * 4)
+    assert s.tyre_elasticity == pytest.approx([0.7] * 4)
     assert s.wheel_inertia == pytest.approx([1.5] * 4) and s.axle_inertia == pytest.approx([0.15] * 2)
     # kb = disk/2 x piston area x mu = 0.1 x 0.002 x 0.3
     assert s.brake_kb == pytest.approx([6e-5] * 4, rel=1e-6)
@@ -94,8 +94,8 @@ def test_clamps_of_spec_3(tmp_path, car_xml, write_car):
       <attnum name="load factor min" val="0.9"/><attnum name="load factor max" val="1.2"/>
     </section>""" for w in ("Front Right", "Front Left", "Rear Right", "Rear Left"))
     s = load_car(write_car(tmp_path, "clamped", car_xml(body=body)))
-    assert s.tire_dynamic_friction == pytest.approx([1.0] * 4)   # RF clamped to [0.1, 1]
+    assert s.tyre_dynamic_friction == pytest.approx([1.0] * 4)   # RF clamped to [0.1, 1]
     assert s.mf_c == pytest.approx([1.0] * 4)
-    assert s.tire_elasticity == pytest.approx([1.0] * 4)         # EF <= 1
+    assert s.tyre_elasticity == pytest.approx([1.0] * 4)         # EF <= 1
     assert s.load_factor_min == pytest.approx([0.8] * 4)         # lfMin <= 0.8
     assert s.load_factor_max == pytest.approx([1.6] * 4)         # lfMax >= 1.6

@@ -137,7 +137,7 @@ def test_steady_cornering_saturates_near_mu_g(make_track, ph):
             break
     assert held_until is not None, "the car never lost the line"
     m = car.mass_total
-    kmu = car.tire_mu * (1 + 0.05 * np.sin(-18 * car.camber))
+    kmu = car.tyre_mu * (1 + 0.05 * np.sin(-18 * car.camber))
     wb = car.wheelbase
     # TORCS's roll (issue 12): the lateral forces act through the roll centres and the roll
     # moment is split by roll stiffness (springs, anti-roll bars), closed form per axle

@@ -131,7 +131,7 @@ def test_braking_distance_tyre_limited(straight, ph):
     from madsim.physics import kernel
     shape1 = kernel.tyre_shape(1.0, car.mf_b[0], car.mf_c[0], car.mf_e[0], 0.3)[0]
     m, L, h = car.mass_total, car.wheelbase, car.cg_height
-    kmu = car.tire_mu * (1 + 0.05 * np.sin(-18 * car.camber))
+    kmu = car.tyre_mu * (1 + 0.05 * np.sin(-18 * car.camber))
 
     a_last = [9.0]
 
