@@ -11,6 +11,8 @@ use and damage on, and prints per run:
   pos rms    RMS trackPos difference, by distance likewise
   z cm       RMS z difference (cm), by distance; spin %: per-wheel wheelSpinVel RMS difference
              over the RMS of TORCS's (the worst of the four wheels), by distance
+  R-L %      each axle's right-minus-left wheelSpinVel (turns, differentials): RMS difference
+             over the RMS of TORCS's, by distance (the worse axle)
   dmg        final damage, TORCS / madsim
   off at     distance raced (m) where the car first leaves the road (|trackPos| > 1), TORCS / madsim
   end        how each run ended: laps done, or DNF (TORCS's lap time limit: 84.5 s + length / 10 m/s)
@@ -203,6 +205,15 @@ def compare(run: Run) -> dict:
         spin.append(100.0 * np.sqrt(np.mean((a - b) ** 2)) / max(np.sqrt(np.mean(b ** 2)), 1e-9))
     out["spin_err"] = float(max(spin))
     out["spin_wheels"] = spin
+    # each axle's right-minus-left spin (the turns, the differentials): RMS difference over
+    # TORCS's RMS, the worse axle (nan where TORCS's wheels never differ)
+    split = []
+    for right, left in ((0, 1), (2, 3)):
+        a, b = (_by_distance(r, f"wheelSpinVel_{right}", grid) - _by_distance(r, f"wheelSpinVel_{left}", grid)
+                for r in (m, t))
+        ref = np.sqrt(np.mean(b ** 2))
+        split.append(100.0 * np.sqrt(np.mean((a - b) ** 2)) / ref if ref > 1e-9 else math.nan)
+    out["split_err"] = float(np.nanmax(split)) if not np.all(np.isnan(split)) else math.nan
     out["dmg_torcs"], out["dmg_madsim"] = float(t["damage"].max()), float(m["damage"].max())
     for who, rec in (("torcs", t), ("madsim", m)):
         off = np.nonzero(np.abs(rec["trackPos"]) > 1.0)[0]
@@ -226,13 +237,13 @@ def _pct(a: float, b: float) -> float:
 
 
 def print_table(rows: list[dict]) -> None:
-    print("| run | lap2 TORCS s | lap2 madsim s | lap2 % | v rms km/h | pos rms | z rms cm | spin % | "
+    print("| run | lap2 TORCS s | lap2 madsim s | lap2 % | v rms km/h | pos rms | z rms cm | spin % | R-L % | "
           "dmg T/m | off at T/m (m) | end T/m |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         off = "/".join("-" if math.isnan(r[k]) else f"{r[k]:.0f}" for k in ("off_torcs", "off_madsim"))
         print(f"| {r['name']} | {r['lap2_torcs']:.3f} | {r['lap2_madsim']:.3f} | {r['lap2_err']:+.2f} | "
-              f"{r['v_rms']:.2f} | {r['pos_rms']:.3f} | {r['z_rms']:.2f} | {r['spin_err']:.1f} | "
+              f"{r['v_rms']:.2f} | {r['pos_rms']:.3f} | {r['z_rms']:.2f} | {r['spin_err']:.1f} | {r['split_err']:.0f} | "
               f"{r['dmg_torcs']:.0f}/{r['dmg_madsim']:.0f} | {off} | {r['end_torcs']}/{r['end_madsim']} |")
     straight = [r for r in rows if "t100_torcs" in r]
     if straight:

@@ -7,15 +7,19 @@ runs as ordinary Python for debugging. There is no second (numpy) implementation
 One sub-step of dt = 0.002 s, in TORCS's order (spec 4.11): steering -> gearbox -> engine torque
 -> wheel loads -> tyre forces -> wheel spin -> engine speed -> body forces -> velocities ->
 positions -> track position, surfaces and laps. A car's state is read into locals once per call
-and written back at the end, so the sub-step loop runs in registers.
+and written back at the end, so the sub-step loop runs in registers. Each wheel has its own
+slip (from its own contact-point velocity and, at the front, its own Ackermann angle) and its
+own spin; the two spins of an axle step together through the axle's differential
+(`_axle_spin`, spec 4.10).
 
 Low-speed stability (spec 5.2 step 6), documented choice: both slip denominators are regularised,
 `sx = (vt - w R) / max(|vt|, V_REG)` and `sy = v_lat / max(|v|, V_REG)` with V_REG = 2 m/s
 (TORCS's definitions above that speed), and the wheel spin takes a linearised implicit step,
 `w += dt (T - R (Ft - dFt/d(wR) dvt)) / (I + dt R^2 dFt/d(wR))` (slope clamped at >= 0, dvt the
 wheel-speed change predicted from the last step's body acceleration), which is stable for any
-spin stiffness and leaves steady states unchanged. TORCS's two-sample
-force/spin averages are therefore not applied.
+spin stiffness and leaves steady states unchanged (for the two wheels of an axle, coupled by
+their differential, a 2 x 2 linear step). TORCS's two-sample force/spin averages are therefore
+not applied (docs/physics.md: what they would change).
 """
 
 from __future__ import annotations
