@@ -23,6 +23,7 @@ import math
 import numba
 import numpy as np
 
+MAX_DATAGRAM_BYTES = 1000  # receive buffer of the C++ server and clients (`UDP_MSGLEN`)
 TIE_MARGIN = 1e-7          # |fraction - 0.5| below this: the exact path decides the rounding
 MAX_VALUE_CHARS = 16       # the longest %g text of a float32 ("-1.23457e-05" is 12) or a C int
 
@@ -323,3 +324,15 @@ def decode_controls_row(buf, n, text, ends, slots, out):
             return False
         pos += 1
     return pos == n
+
+
+@numba.njit(cache=True)
+def decode_stock(buf, n, cpp, snakeoil, out):
+    """A control datagram buf[:n] (uint8, n its whole length) in either stock layout (`cpp`,
+    `snakeoil`: `layout_table` tuples) into out (8,) as `decode_controls_row`; False when it is
+    neither, or longer than the C++ server reads (the exact Python parser decides then)."""
+    if n > MAX_DATAGRAM_BYTES or (n == MAX_DATAGRAM_BYTES and buf[n - 1] != 0):
+        return False
+    if decode_controls_row(buf, n, cpp[0], cpp[1], cpp[2], out):
+        return True
+    return decode_controls_row(buf, n, snakeoil[0], snakeoil[1], snakeoil[2], out)
