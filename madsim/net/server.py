@@ -560,6 +560,7 @@ def warm_up(world, noisy: bool = False) -> None:
     for tick, msg in enumerate(answers * 2):
         if tick == len(answers):
             world.reset(placements)
+            race.refresh()
         inbox[:, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
         inlen[:] = len(msg)
         race.run(DECODE, DONE, stepping=True, nsub=10, countdown=0)

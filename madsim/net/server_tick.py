@@ -18,11 +18,13 @@ import numpy as np
 
 from madsim.facts import TICK_S
 from madsim.net import protocol as P
+from madsim.net.array_table import (address_table, b1_vector, f8_fmatrix, f8_matrix, f8_vector,
+                                    i1_vector, i8_matrix, i8_vector, u1_matrix, u1_vector)
 from madsim.net.codec_kernels import decode_stock, encode_rows
 from madsim.physics.layout import S_DAMAGE, S_LAPS, S_TIME
 from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR, O_TPOS,
                                     SENSOR_OFFSETS, focus_due, focus_request, sensor_kernel)
-from madsim.physics.world_tick import NEAR_ARG, step_world
+from madsim.physics.world_tick import step_world
 
 DECODE, STEP, SENSE, ENCODE, DONE = 0, 1, 2, 3, 4
 """The stages in order; `server_tick` returns the one Python must do, or DONE."""
@@ -30,33 +32,70 @@ EVENT = 8
 """Or-ed into DONE: a car's lap count changed, a car is over the damage limit, or a client
 asked for a restart (meta 1): the loop's bookkeeping has work."""
 
+# The arrays `server_tick` reads, in the order of its address table (`array_table`): name,
+# dtype, dimensions, memory order. World rows follow World.tick_args (contact arrays: the
+# ContactSolver's broad-phase arguments), sensor rows SensorSuite.kernel_args.
+TABLE = (
+    ("inbox", "u1", 2, "C"), ("inlen", "i8", 1, "C"), ("meta", "i8", 1, "C"),
+    ("cpp_text", "u1", 1, "C"), ("cpp_ends", "i8", 1, "C"), ("cpp_slots", "i8", 1, "C"),
+    ("snakeoil_text", "u1", 1, "C"), ("snakeoil_ends", "i8", 1, "C"), ("snakeoil_slots", "i8", 1, "C"),
+    ("controls", "f8", 2, "C"), ("steps", "i8", 1, "C"), ("cars", "i8", 1, "C"),
+    ("state", "f8", 2, "F"), ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
+    ("piece_table", "f8", 2, "C"), ("surfaces", "f8", 2, "C"), ("track_scalars", "f8", 1, "C"),
+    ("info", "i8", 1, "C"), ("x", "f8", 1, "C"), ("y", "f8", 1, "C"), ("yaw", "f8", 1, "C"),
+    ("piece", "i8", 1, "C"),
+    ("bp_geo", "f8", 2, "C"), ("bp_bar", "f8", 2, "C"), ("bp_cars", "f8", 2, "C"), ("bp_prm", "f8", 1, "C"),
+    ("bp_wall_cache", "f8", 2, "C"), ("bp_vref", "f8", 2, "C"), ("bp_pairs", "i8", 2, "C"),
+    ("bp_meta", "i8", 1, "C"), ("bp_flags", "i1", 1, "C"), ("bp_slack", "f8", 1, "C"),
+    ("near", "i8", 1, "C"), ("snap", "f8", 2, "F"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
+    ("contact_wall", "b1", 1, "C"), ("contact_car", "b1", 1, "C"), ("race_pos", "i8", 1, "C"),
+    ("track_geo", "f8", 2, "C"), ("track_runs", "f8", 2, "C"), ("piece_run", "i8", 1, "C"),
+    ("angles", "f8", 2, "C"), ("dist_origin", "f8", 1, "C"), ("active", "b1", 1, "C"),
+    ("focus_requested", "f8", 1, "C"), ("focus_next", "f8", 1, "C"), ("focus_earliest", "f8", 1, "C"),
+    ("due", "b1", 1, "C"), ("flat", "f8", 2, "C"),
+    ("is_int", "b1", 1, "C"), ("literals", "u1", 1, "C"), ("literal_ends", "i8", 1, "C"),
+    ("out", "u1", 2, "C"), ("out_len", "i8", 1, "C"), ("laps_seen", "f8", 1, "C"),
+)
+(INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, ST, CP,
+ CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
+ BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, SNAP, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
+ PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
+ OUT_LEN, LAPS_SEEN) = range(len(TABLE))
+
 
 @numba.njit(cache=True, error_model="numpy")
-def server_tick(first, stop, stepping, plain, nsub, inbox, inlen, meta, layouts, u, world, steps,
-                cars, sense, due, flat, codec, out, out_len, laps_seen, max_damage):
-    """Run the stages first..stop-1 of one tick; returns the first stage left to Python (its
-    inputs are complete, its outputs not), `stop` if it was reached, or DONE (| EVENT).
+def server_tick(first, stop, stepping, plain, nsub, t, dt, fuel_on, length, half_width, max_range,
+                max_bytes, max_damage):
+    """Run the stages first..stop-1 of one tick on the arrays of address table `t` (`TABLE`);
+    returns the first stage left to Python (its inputs complete, its outputs not), `stop` if
+    it was reached, or DONE (| EVENT). The scalars: the World's sub-step (s), fuel flag and
+    track length (m), the track's half width and the sensors' range (m), the state message's
+    byte limit, the damage limit.
 
-    DECODE: inbox (N, B) uint8 holds car i's datagram in inbox[i, :inlen[i]] (inlen[i] < 0: no
-      answer this tick, its controls and focus request stay); into u (N, 5) controls, meta (N,)
-      and the focus requests; `layouts` = protocol.STOCK_LAYOUTS. Stops where a datagram is in
-      no stock layout (meta[i] = -1 marks those).
-    STEP (when `stepping`, i.e. not in the countdown): `world_tick.step_world(u, nsub,
-      *world)`, world = World.tick_args; steps[0] = its answer. Stops on a non-finite control
-      (steps[0] < 0: nothing was changed) or something near (after sub-step steps[0]: the
-      World's finish_tick goes on from there).
-    SENSE: sensor_kernel(cars, st, *sense[:9], flat) and the focus cooldowns (sense[9:] =
-      requested, next allowed, earliest: SensorSuite.kernel_args); stops when a focus reading
-      is due (due (N,) bool), and always when not `plain` (noise or countdown to apply).
-    ENCODE: codec_kernels.encode_rows(flat, *codec, out, out_len) (codec =
-      SensorEncoder.kernel_args); stops when a row is left to the exact encoder (out_len -1).
-    Then DONE, with EVENT when st's lap counts differ from laps_seen (N,), a damage exceeds
+    DECODE: car i's datagram is inbox[i, :inlen[i]] (inlen[i] < 0: no answer this tick, its
+      controls and focus request stay); into controls (N, 5), meta (N,) and the focus
+      requests. Stops where a datagram is in no stock layout (meta[i] = -1 marks those).
+    STEP (when `stepping`, i.e. not in the countdown): `world_tick.step_world`; steps[0] = its
+      answer. Stops on a non-finite control (steps[0] < 0: nothing was changed) or something
+      near (after sub-step steps[0]: World.finish_tick goes on from there).
+    SENSE: `sensor_kernel` into flat (N, 79) and the focus cooldowns (`focus_due`); stops when
+      a focus reading is due (due (N,) bool), and always when not `plain` (noise or the
+      countdown to apply).
+    ENCODE: `codec_kernels.encode_rows` into out, out_len; stops when a row is left to the
+      exact encoder (out_len -1).
+    Then DONE, with EVENT when the lap counts differ from laps_seen (N,), a damage exceeds
     max_damage, or a decoded meta is 1.
     """
+    u = f8_matrix(t, U)
+    st = f8_fmatrix(t, ST)
     n = u.shape[0]
-    st = world[0]
+    cars = i8_vector(t, CARS)
+    requested, next_allowed, earliest = f8_vector(t, REQUESTED), f8_vector(t, NEXT), f8_vector(t, EARLIEST)
     event = False
     if first <= DECODE < stop:
+        inbox, inlen, meta = u1_matrix(t, INBOX), i8_vector(t, INLEN), i8_vector(t, META)
+        cpp = (u1_vector(t, CPP_TEXT), i8_vector(t, CPP_ENDS), i8_vector(t, CPP_SLOTS))
+        snakeoil = (u1_vector(t, SO_TEXT), i8_vector(t, SO_ENDS), i8_vector(t, SO_SLOTS))
         dec = np.empty(8)
         asked = np.empty(n, dtype=np.int64)
         focus = np.empty(n)
@@ -66,7 +105,7 @@ def server_tick(first, stop, stepping, plain, nsub, inbox, inlen, meta, layouts,
             if inlen[i] < 0:
                 meta[i] = 0
                 continue
-            if not decode_stock(inbox[i], inlen[i], layouts[0], layouts[1], dec):
+            if not decode_stock(inbox[i], inlen[i], cpp, snakeoil, dec):
                 meta[i] = -1
                 whole = False
                 continue
@@ -77,17 +116,28 @@ def server_tick(first, stop, stepping, plain, nsub, inbox, inlen, meta, layouts,
             asked[m] = i
             focus[m] = dec[5]
             m += 1
-        focus_request(asked[:m], focus[:m], sense[9], sense[10], sense[11])
+        focus_request(asked[:m], focus[:m], requested, next_allowed, earliest)
         if not whole:
             return DECODE
+    race_pos = i8_vector(t, RACE_POS)
     if first <= STEP < stop and stepping:
-        steps[0] = step_world(u, nsub, *world)
-        if steps[0] < 0 or world[NEAR_ARG][0] != 0:
+        near = i8_vector(t, NEAR)
+        steps = i8_vector(t, STEPS)
+        bp = (f8_matrix(t, BP_GEO), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS), f8_vector(t, BP_PRM),
+              f8_matrix(t, BP_WALL), f8_matrix(t, BP_VREF), i8_matrix(t, BP_PAIRS), i8_vector(t, BP_META),
+              i1_vector(t, BP_FLAGS), f8_vector(t, BP_SLACK))
+        steps[0] = step_world(u, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
+                              f8_matrix(t, PT), f8_matrix(t, SURF), f8_vector(t, TSC), dt, fuel_on, length,
+                              i8_vector(t, INFO), f8_vector(t, X), f8_vector(t, Y), f8_vector(t, YAW),
+                              i8_vector(t, PIECE), bp, near, f8_fmatrix(t, SNAP), f8_vector(t, PATH),
+                              f8_vector(t, TURN), b1_vector(t, WALL), b1_vector(t, CAR), race_pos)
+        if steps[0] < 0 or near[0] != 0:
             return STEP
     if first <= SENSE < stop:
-        sensor_kernel(cars, st, sense[0], sense[1], sense[2], sense[3], sense[4], sense[5], sense[6],
-                      sense[7], sense[8], flat)
-        earliest = sense[11]
+        flat, due = f8_matrix(t, FLAT), b1_vector(t, DUE)
+        sensor_kernel(cars, st, f8_matrix(t, GEO), f8_matrix(t, RUNS), i8_vector(t, PIECE_RUN), half_width,
+                      f8_matrix(t, ANGLES), race_pos, f8_vector(t, ORIGIN), b1_vector(t, ACTIVE), max_range,
+                      flat)
         count = 0
         if st[0, S_TIME] >= earliest[0]:        # one clock for all cars
             time_s = np.empty(cars.shape[0])
@@ -95,18 +145,21 @@ def server_tick(first, stop, stepping, plain, nsub, inbox, inlen, meta, layouts,
             for k in range(cars.shape[0]):
                 time_s[k] = st[cars[k], S_TIME]
                 on_track[k] = abs(flat[k, O_TPOS]) <= 1.0
-            count = focus_due(cars, time_s, on_track, sense[9], sense[10], earliest, due)
+            count = focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due)
         if count > 0 or not plain:
             if count == 0:
                 due[:] = False
             return SENSE
     if first <= ENCODE < stop:
-        encode_rows(flat, codec[0], codec[1], codec[2], codec[3], out, out_len)
+        out_len = i8_vector(t, OUT_LEN)
+        encode_rows(f8_matrix(t, FLAT), b1_vector(t, IS_INT), u1_vector(t, LIT), i8_vector(t, LIT_END),
+                    max_bytes, u1_matrix(t, OUT), out_len)
         for i in range(out_len.shape[0]):
             if out_len[i] < 0:
                 return ENCODE
     if stop < DONE:
         return stop
+    laps_seen = f8_vector(t, LAPS_SEEN)
     for i in range(n):
         if st[i, S_LAPS] != laps_seen[i] or st[i, S_DAMAGE] > max_damage:
             event = True
@@ -144,9 +197,23 @@ class ServerTick:
         self._set_args()
 
     def _set_args(self) -> None:
-        self.args = (self.inbox, self.inlen, self.meta, P.STOCK_LAYOUTS, self.u, self.world.tick_args,
-                     self.steps, self.cars, self.suite.kernel_args(), self.due, self.flat,
-                     P.STATE_ENCODER.kernel_args(), self.out, self.out_len, self.laps_seen, self.max_damage)
+        """The address table and scalars of `server_tick` (again whenever an array is replaced)."""
+        w = self.world.tick_args
+        if w is None:
+            return
+        geo, runs, piece_run, half, angles, _, origin, active, max_range, *focus = self.suite.kernel_args()
+        is_int, lit, lit_end, max_bytes = P.STATE_ENCODER.kernel_args()
+        arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
+                  self.steps, self.cars, *w[:7], *w[10:15], *w[15], *w[16:], geo, runs, piece_run, angles,
+                  origin, active, *focus, self.due, self.flat, is_int, lit, lit_end, self.out, self.out_len,
+                  self.laps_seen)
+        self._arrays = arrays             # alive as long as the table is used
+        self.args = (address_table(arrays, TABLE), w[7], w[8], w[9], half, max_range, max_bytes,
+                     self.max_damage)
+
+    def refresh(self) -> None:
+        """Call after the World or the suite replaced an array (e.g. World.reset)."""
+        self._set_args()
 
     def message(self, car: int) -> memoryview:
         """Car `car`'s state message (with its NUL) as the last run left it."""

@@ -13,8 +13,6 @@ from madsim.physics.contact_kernels import advance_until_near
 from madsim.physics.kernel import check_controls, slipstream
 from madsim.physics.layout import S_DIST, S_LAPS
 
-NEAR_ARG = 16
-"""Where `near` is in `World.tick_args` (step_world's arguments after u and nsub)."""
 NONFINITE = -1
 """`step_world`'s answer when a control is not finite (nothing was changed)."""
 
