@@ -305,11 +305,11 @@ class ScrServer:
                 countdown -= 1
             nsub = self.clock.substeps() if stepping else 0
             if writer is None:
-                status = race.run(DECODE, DONE, stepping=stepping, nsub=nsub, countdown=countdown)
+                status = race.run(DECODE, DONE, stepping, nsub, countdown)
             else:      # the row of the state sent and the controls applied, before the step
-                race.run(DECODE, STEP, stepping=stepping, nsub=nsub, countdown=countdown)
+                race.run(DECODE, STEP, stepping, nsub, countdown)
                 self._write_csv(writer, label, world, SensorFrame(race.flat, race.cars), self._controls)
-                status = race.run(STEP, DONE, stepping=stepping, nsub=nsub, countdown=countdown)
+                status = race.run(STEP, DONE, stepping, nsub, countdown)
             if stepping:
                 self.stats.ticks += 1
                 tick += 1
@@ -414,18 +414,11 @@ class ScrServer:
         (SO_RCVTIMEO); a car silent that long goes to timeout behaviour."""
         inlen = self._inlen
         for c in cars:
-            inlen[c.index] = -1
-        for c in cars:
-            n = self._wait_for_client(c)
-            if self._stop:
-                break
+            n = inlen[c.index] = -1 if self._stop else self._wait_for_client(c)
             if n < 0:
-                self._to_timeout_behaviour(c)
-            else:
-                inlen[c.index] = n
-        for c in cars:
-            if inlen[c.index] < 0:
                 self.stats.timeouts += 1
+                if not self._stop:
+                    self._to_timeout_behaviour(c)
 
     def _to_timeout_behaviour(self, c: _Car) -> None:
         c.sync = False

@@ -219,22 +219,24 @@ class ServerTick:
         """Car `car`'s state message (with its NUL) as the last run left it."""
         return self._messages[car][:self.out_len[car]]
 
-    def run(self, first: int, stop: int, *, stepping: bool, nsub: int, countdown: int) -> int:
+    def run(self, first: int, stop: int, stepping: bool, nsub: int, countdown: int) -> int:
         """Stages first..stop-1 (DECODE, STEP, SENSE, ENCODE); returns stop, or for stop = DONE
         DONE | EVENT when the bookkeeping has work (always after a stage done in Python).
         stepping: advance the World (False in the countdown); countdown: the ticks still to
         wait before the start, shown in the state being built (curLapTime < 0, gear 0, no focus)."""
         plain = countdown == 0 and not self.suite.noisy
         status = first
+        if self.compiled:           # the usual tick: one call, nothing left
+            status = server_tick(first, stop, stepping, plain, nsub, *self.args)
+            if status >= stop:
+                return status
         python = False
         while status < stop:
-            if self.compiled:
-                status = server_tick(status, stop, stepping, plain, nsub, *self.args)
-                if status >= stop:
-                    break
             self._python_stage(status, stepping, nsub, countdown)
             python = True
             status += 1
+            if self.compiled and status < stop:
+                status = server_tick(status, stop, stepping, plain, nsub, *self.args)
         if python and stop == DONE:
             return DONE | EVENT
         return status
