@@ -3,14 +3,17 @@
 Run: python benchmarks/bench_server.py [--ticks 20000] [--track madsim-oval] [--case rest]
                                        [--profile FILE]
      python benchmarks/bench_server.py --tools ../shared/tools [--reps 3] [--ticks 20000]
+                                       [--baseline OTHER_CHECKOUT]
 
 With --tools DIR: the issue-13 acceptance procedure instead. DIR holds `scr_speed_probe.py`
 (the minimal client; `--full` parses every sensor first) and `scr_echo_server.py` (a
 do-nothing Python server). Each repetition runs, back to back on one port, echo then `madsim
 serve` (sync, g-track-1, car1-trb1, `--countdown 0`), with the minimal client then the full
 one; every figure is over the whole run from the first tick after identification (start-up
-stalls included). Prints each run, then per server and client the median ticks/s, the
-worst longest wait, and madsim's median as a share of echo's.
+stalls included). Prints each run, then per server and client the median ticks/s (and
+range), the worst longest wait, and madsim's median as a share of echo's. `--baseline DIR`
+adds a third server to each repetition: `madsim serve` of another checkout (run from its own
+folder with PYTHONPATH=DIR), e.g. main before a change, so both are measured in one sitting.
 
 The server runs as a subprocess (`python -m madsim.cli serve --countdown 0 --max-ticks N`); the
 client is a plain socket in this process that sends the init once, then answers every state
