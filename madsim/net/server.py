@@ -327,6 +327,9 @@ class ScrServer:
             damage = world.column("damage").tolist()
             if max(damage) > MAX_DAMAGE:
                 cars = [c for c in cars if damage[c.index] <= MAX_DAMAGE]
+                for c in self.cars:
+                    if damage[c.index] > MAX_DAMAGE:
+                        self._inlen[c.index] = -1     # out of the race: no answer read again
             restart_by = next((c.index for c in cars if race.meta[c.index] == 1), None)
             if restart_by is not None:
                 self.stats.restarts += 1
