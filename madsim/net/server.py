@@ -132,6 +132,7 @@ class ScrServer:
         self._race_ticks = 0          # world ticks of the current race
         self._warm = False            # kernels loaded (warm_up ran) in this process
         self._poll = select.poll()    # the sockets, to see at once whether any datagram is queued
+        self._behind = 0              # cars dropped to timeout behaviour (sync mode)
 
     # --- sockets ----------------------------------------------------------------------------
 
@@ -188,6 +189,8 @@ class ScrServer:
         """Block until every car's client has identified (§3). False if stopped / timed out."""
         for c in self.cars:
             c.addr = None
+            c.sync = True
+        self._behind = 0
         waiting_since = last_note = time.monotonic()
         self.log(f"waiting for {self.n} client(s) on UDP port(s) {_port_list(self.ports)}")
         while any(c.addr is None for c in self.cars):
@@ -216,7 +219,6 @@ class ScrServer:
                     c.addr = addr
                     c.angles = init.angles_deg
                     c.controls[:] = 0.0
-                    c.sync = True
                     self._send(c, self.reply)
                     self.log(f"client {init.client_id!r} identified on port {c.port} from {addr[0]}:{addr[1]}")
         return True
@@ -283,14 +285,16 @@ class ScrServer:
         countdown = self.countdown_ticks
         tick = self._race_ticks = 0
         self.clock.reset()
-        race.run(SENSE, DONE, stepping=False, nsub=0, countdown=countdown)
+        drain = self.mode != "timeout"      # TORCS's timeout mode reads one datagram per tick
+        race.run(SENSE, DONE, False, 0, countdown)
         while True:
             if self._stop:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
                 return "stopped"
             finished = self._race_over(tick, laps, cars)
-            late = {} if finished or self.mode == "timeout" else self._take_late(cars)
+            # stale datagrams (sync, realtime): one poll says whether any socket holds one
+            late = self._take_late(cars) if drain and not finished and self._poll.poll(0) else {}
             for c in cars:
                 self._send(c, race.message(c.index))
             if finished:
@@ -356,8 +360,6 @@ class ScrServer:
         its deadline) and in realtime mode the newest datagram is a late answer: it is used if
         no fresh answer comes this tick (and in sync mode the client is waited for again)."""
         late: dict[int, bytes] = {}
-        if not self._poll.poll(0):       # nothing queued anywhere (the usual tick): one syscall
-            return late
         for c in cars:          # non-blocking reads: an empty queue is one failed recv
             keep_newest = self.mode == "realtime" or not c.sync
             while (got := self._recv(c)) is not None:
@@ -374,7 +376,7 @@ class ScrServer:
 
     def _collect(self, cars: list[_Car], late: dict[int, bytes]) -> None:
         """Read this tick's answers per the clock mode into the cars' inbox rows (`_inlen`)."""
-        if not late and self.mode == "sync" and all(c.sync for c in cars):
+        if not late and self.mode == "sync" and not self._behind:
             self._collect_sync(cars)
             return
         got: dict[int, bytes] = dict(late)   # fresh answers replace late ones
@@ -425,6 +427,7 @@ class ScrServer:
 
     def _to_timeout_behaviour(self, c: _Car) -> None:
         c.sync = False
+        self._behind += 1
         self.log(f"warning: client of car {c.index} silent for {self.client_deadline_s:g} s "
                  f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
                  f"per tick until it answers again")
@@ -460,6 +463,7 @@ class ScrServer:
                 continue
             if not c.sync:   # it answered (late or fresh): wait for it again
                 c.sync = True
+                self._behind -= 1
                 self.log(f"client of car {c.index} answers again: waiting for it every tick")
             self._inbox[c.index, :len(data)] = np.frombuffer(data, dtype=np.uint8)
             self._inlen[c.index] = len(data)
