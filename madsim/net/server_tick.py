@@ -6,7 +6,7 @@ The stages are the engine's own kernels (`codec_kernels.decode_stock`, `world_ti
 `sensors.sensor_kernel` and `focus_due`, `codec_kernels.encode_rows`), so the bytes are those of
 the in-process doors (World.step, SensorSuite.frame, protocol.encode_sensor_rows). Whatever a
 stage cannot finish exactly stops the call at that stage and is done by the Python path of the
-same stage (`ScrServer._finish_tick`), which then goes on: a datagram in no stock layout, a
+same stage (`ServerTick._python_stage`), which then goes on: a datagram in no stock layout, a
 control that is not finite, something near a car (the pymunk narrow phase), a focus reading
 due, sensor noise or the start countdown, a value the compiled encoder leaves to the exact one.
 """
