@@ -75,8 +75,6 @@ def _put_g(out, i, pos, f):
     if a == 0.0:
         out[i, pos] = 48
         return pos + 1
-    if a < 1e6 and a == math.floor(a):     # an integer of at most 6 digits: %g prints it so
-        return _put_int(out, i, pos, int(a))
     # 10^e <= a < 10^(e+1), estimated from the binary exponent (off by one at most: the loop
     # below corrects it); log10 costs more than the rest of the value
     e = int(math.floor((math.frexp(a)[1] - 1) * LOG10_2))
@@ -183,7 +181,14 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
                 if not math.isfinite(f):
                     ok = False
                     break
-                pos = _put_g(out, i, pos, f)
+                a = abs(f)
+                if a < 1e6 and a == math.floor(a):   # an integer of up to 6 digits: %g prints it so
+                    if math.copysign(1.0, f) < 0.0:
+                        out[i, pos] = 45
+                        pos += 1
+                    pos = _put_int(out, i, pos, int(a))
+                else:
+                    pos = _put_g(out, i, pos, f)
                 if pos < 0:
                     ok = False
                     break
