@@ -194,13 +194,16 @@ class ServerTick:
         self.max_damage = float(max_damage)
         self.bad_datagrams = 0             # answers not well formed (applied as TORCS reads them)
         self.compiled = world.tick_args is not None
+        self._world_args = None
         self._set_args()
 
     def _set_args(self) -> None:
-        """The address table and scalars of `server_tick` (again whenever an array is replaced)."""
+        """The address table and scalars of `server_tick`, built again when the World's
+        arguments are a new tuple (its contact solver replaced an array)."""
         w = self.world.tick_args
-        if w is None:
+        if w is None or w is self._world_args:
             return
+        self._world_args = w
         geo, runs, piece_run, half, angles, _, origin, active, max_range, *focus = self.suite.kernel_args()
         is_int, lit, lit_end, max_bytes = P.STATE_ENCODER.kernel_args()
         arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
@@ -213,6 +216,7 @@ class ServerTick:
 
     def refresh(self) -> None:
         """Call after the World or the suite replaced an array (e.g. World.reset)."""
+        self._world_args = None
         self._set_args()
 
     def message(self, car: int) -> memoryview:

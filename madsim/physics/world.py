@@ -317,13 +317,17 @@ class World:
                              self._path, self._turn)
 
     def _set_tick_args(self) -> None:
+        """(Re)build `tick_args`: a new tuple only when the contact solver replaced its arrays."""
         if self._solver is None or self._stepper is not self._stepper_serial:
+            return
+        bp = self._solver.broad_phase_args
+        if self.tick_args is not None and self.tick_args[15] is bp:
             return
         cols = self._contact_cols
         self.tick_args = (self.state, self._cp, self._curve_w, self._curve_t, self._pt, self._surf,
                           self._tsc, DT, self.fuel_on, self.track.length, self._info, cols[0], cols[1],
-                          cols[2], self._piece_i, self._solver.broad_phase_args, self._near, self._snap,
-                          self._path, self._turn, self.contact_wall, self.contact_car, self.race_pos)
+                          cols[2], self._piece_i, bp, self._near, self._snap, self._path, self._turn,
+                          self.contact_wall, self.contact_car, self.race_pos)
 
     def _update_race_pos(self) -> None:
         world_tick.race_positions(self.state, self.race_pos)
