@@ -27,6 +27,7 @@ import os
 import select
 import socket
 import struct
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -243,8 +244,16 @@ class ScrServer:
                 writer = csv.writer(csv_file)
                 writer.writerow(CSV_FIELDS)
             while not self._stop:
-                if not self._warm:
-                    warm_up(self.make_world(self.seed), self.noisy)
+                if not self._warm:     # say what a long wait is (a compile), if there is one
+                    notice = threading.Timer(3.0, self.log, ["compiling the race kernels (the first run "
+                                             "after an install or a kernel edit: up to a minute; cached "
+                                             "for later runs) ..."])
+                    notice.daemon = True
+                    notice.start()
+                    try:
+                        warm_up(self.make_world(self.seed), self.noisy)
+                    finally:
+                        notice.cancel()
                     self._warm = True
                 world = self.make_world(self.seed)   # before the clients, as TORCS loads first
                 # a full collection of the ~150k objects of numba, pymunk and the World takes
