@@ -4,8 +4,8 @@ Why: numba's dispatcher unboxes each array argument on every call, ~50-80 ns api
 SCR server's tick reads about sixty arrays, so passing them one by one cost 4-5 us per tick
 (a third of the tick), and 7-9 us as nested tuples. `address_table` checks every array
 against its declared dtype, dimensions and memory order and writes (address, shape) rows; a
-compiled function rebuilds views with `vector` / `matrix` / `fmatrix` (`numba.carray` /
-`farray` on the address). The owner of the table keeps the arrays alive and rebuilds the table
+compiled function rebuilds views with the `*_vector` / `*_matrix` functions (`numba.carray`
+on the address: 1-d, or 2-d in C order). The owner of the table keeps the arrays alive and rebuilds the table
 whenever one of them is replaced; the views are only valid during the call.
 """
 
@@ -63,11 +63,6 @@ def f8_vector(table, k):
 @numba.njit(cache=True, inline="always")
 def f8_matrix(table, k):
     return numba.carray(f8_ptr(table[k, 0]), (table[k, 1], table[k, 2]))
-
-
-@numba.njit(cache=True, inline="always")
-def f8_fmatrix(table, k):
-    return numba.farray(f8_ptr(table[k, 0]), (table[k, 1], table[k, 2]))
 
 
 @numba.njit(cache=True, inline="always")

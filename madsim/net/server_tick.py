@@ -18,8 +18,8 @@ import numpy as np
 
 from madsim.facts import TICK_S
 from madsim.net import protocol as P
-from madsim.net.array_table import (address_table, b1_vector, f8_fmatrix, f8_matrix, f8_vector,
-                                    i1_vector, i8_matrix, i8_vector, u1_matrix, u1_vector)
+from madsim.net.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i1_vector,
+                                    i8_matrix, i8_vector, u1_matrix, u1_vector)
 from madsim.net.codec_kernels import decode_stock, encode_rows
 from madsim.physics.layout import S_DAMAGE, S_LAPS, S_TIME
 from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR, O_TPOS,
@@ -40,14 +40,14 @@ TABLE = (
     ("cpp_text", "u1", 1, "C"), ("cpp_ends", "i8", 1, "C"), ("cpp_slots", "i8", 1, "C"),
     ("snakeoil_text", "u1", 1, "C"), ("snakeoil_ends", "i8", 1, "C"), ("snakeoil_slots", "i8", 1, "C"),
     ("controls", "f8", 2, "C"), ("steps", "i8", 1, "C"), ("cars", "i8", 1, "C"),
-    ("state", "f8", 2, "F"), ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
+    ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
     ("piece_table", "f8", 2, "C"), ("surfaces", "f8", 2, "C"), ("track_scalars", "f8", 1, "C"),
     ("info", "i8", 1, "C"), ("x", "f8", 1, "C"), ("y", "f8", 1, "C"), ("yaw", "f8", 1, "C"),
     ("piece", "i8", 1, "C"),
     ("bp_geo", "f8", 2, "C"), ("bp_bar", "f8", 2, "C"), ("bp_cars", "f8", 2, "C"), ("bp_prm", "f8", 1, "C"),
     ("bp_wall_cache", "f8", 2, "C"), ("bp_vref", "f8", 2, "C"), ("bp_pairs", "i8", 2, "C"),
     ("bp_meta", "i8", 1, "C"), ("bp_flags", "i1", 1, "C"), ("bp_slack", "f8", 1, "C"),
-    ("near", "i8", 1, "C"), ("snap", "f8", 2, "F"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
+    ("near", "i8", 1, "C"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
     ("contact_wall", "b1", 1, "C"), ("contact_car", "b1", 1, "C"), ("race_pos", "i8", 1, "C"),
     ("track_geo", "f8", 2, "C"), ("track_runs", "f8", 2, "C"), ("piece_run", "i8", 1, "C"),
     ("angles", "f8", 2, "C"), ("dist_origin", "f8", 1, "C"), ("active", "b1", 1, "C"),
@@ -56,17 +56,18 @@ TABLE = (
     ("is_int", "b1", 1, "C"), ("literals", "u1", 1, "C"), ("literal_ends", "i8", 1, "C"),
     ("out", "u1", 2, "C"), ("out_len", "i8", 1, "C"), ("laps_seen", "f8", 1, "C"),
 )
-(INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, ST, CP,
+(INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, CP,
  CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
- BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, SNAP, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
+ BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
  PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
  OUT_LEN, LAPS_SEEN) = range(len(TABLE))
 
 
 @numba.njit(cache=True, error_model="numpy")
-def server_tick(first, stop, stepping, plain, nsub, t, dt, fuel_on, length, half_width, max_range,
-                max_bytes, max_damage):
-    """Run the stages first..stop-1 of one tick on the arrays of address table `t` (`TABLE`);
+def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, length, half_width,
+                max_range, max_bytes, max_damage):
+    """Run the stages first..stop-1 of one tick on the World state `st`, its scratch copy `snap`
+    and the arrays of address table `t` (`TABLE`);
     returns the first stage left to Python (its inputs complete, its outputs not), `stop` if
     it was reached, or DONE (| EVENT). The scalars: the World's sub-step (s), fuel flag and
     track length (m), the track's half width and the sensors' range (m), the state message's
@@ -87,7 +88,6 @@ def server_tick(first, stop, stepping, plain, nsub, t, dt, fuel_on, length, half
     max_damage, or a decoded meta is 1.
     """
     u = f8_matrix(t, U)
-    st = f8_fmatrix(t, ST)
     n = u.shape[0]
     cars = i8_vector(t, CARS)
     requested, next_allowed, earliest = f8_vector(t, REQUESTED), f8_vector(t, NEXT), f8_vector(t, EARLIEST)
@@ -129,7 +129,7 @@ def server_tick(first, stop, stepping, plain, nsub, t, dt, fuel_on, length, half
         steps[0] = step_world(u, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
                               f8_matrix(t, PT), f8_matrix(t, SURF), f8_vector(t, TSC), dt, fuel_on, length,
                               i8_vector(t, INFO), f8_vector(t, X), f8_vector(t, Y), f8_vector(t, YAW),
-                              i8_vector(t, PIECE), bp, near, f8_fmatrix(t, SNAP), f8_vector(t, PATH),
+                              i8_vector(t, PIECE), bp, near, snap, f8_vector(t, PATH),
                               f8_vector(t, TURN), b1_vector(t, WALL), b1_vector(t, CAR), race_pos)
         if steps[0] < 0 or near[0] != 0:
             return STEP
@@ -207,12 +207,14 @@ class ServerTick:
         geo, runs, piece_run, half, angles, _, origin, active, max_range, *focus = self.suite.kernel_args()
         is_int, lit, lit_end, max_bytes = P.STATE_ENCODER.kernel_args()
         arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
-                  self.steps, self.cars, *w[:7], *w[10:15], *w[15], *w[16:], geo, runs, piece_run, angles,
+                  self.steps, self.cars, *w[1:7], *w[10:15], *w[15], w[16], *w[18:], geo, runs, piece_run, angles,
                   origin, active, *focus, self.due, self.flat, is_int, lit, lit_end, self.out, self.out_len,
                   self.laps_seen)
         self._arrays = arrays             # alive as long as the table is used
-        self.args = (address_table(arrays, TABLE), w[7], w[8], w[9], half, max_range, max_bytes,
-                     self.max_damage)
+        # the state and its scratch copy go as arguments: typed as World.step's callers see them
+        # (C order for one car), so the physics kernels are compiled once for both
+        self.args = (w[0], w[17], address_table(arrays, TABLE), w[7], w[8], w[9], half, max_range,
+                     max_bytes, self.max_damage)
 
     def refresh(self) -> None:
         """Call after the World or the suite replaced an array (e.g. World.reset)."""
