@@ -3,14 +3,17 @@
 Run: python benchmarks/bench_server.py [--ticks 20000] [--track madsim-oval] [--case rest]
                                        [--profile FILE]
      python benchmarks/bench_server.py --tools ../shared/tools [--reps 3] [--ticks 20000]
+                                       [--baseline OTHER_CHECKOUT]
 
 With --tools DIR: the issue-13 acceptance procedure instead. DIR holds `scr_speed_probe.py`
 (the minimal client; `--full` parses every sensor first) and `scr_echo_server.py` (a
 do-nothing Python server). Each repetition runs, back to back on one port, echo then `madsim
 serve` (sync, g-track-1, car1-trb1, `--countdown 0`), with the minimal client then the full
 one; every figure is over the whole run from the first tick after identification (start-up
-stalls included). Prints each run, then per server and client the median ticks/s, the
-worst longest wait, and madsim's median as a share of echo's.
+stalls included). Prints each run, then per server and client the median ticks/s (and
+range), the worst longest wait, and madsim's median as a share of echo's. `--baseline DIR`
+adds a third server to each repetition: `madsim serve` of another checkout (run from its own
+folder with PYTHONPATH=DIR), e.g. main before a change, so both are measured in one sitting.
 
 The server runs as a subprocess (`python -m madsim.cli serve --countdown 0 --max-ticks N`); the
 client is a plain socket in this process that sends the init once, then answers every state
@@ -128,22 +131,26 @@ def run(ticks: int, track: str, control: bytes, profile: str | None) -> float:
             server.wait()
 
 
-def probe_runs(tools: str, reps: int, ticks: int) -> None:
+def probe_runs(tools: str, reps: int, ticks: int, baseline: str | None = None) -> None:
     """The acceptance procedure of issue 13 (see the module docstring): prints one line per run
-    and a summary."""
+    and a summary (median and range). `baseline`: another checkout whose `madsim serve` runs
+    back to back with this one's (e.g. main before a change)."""
     probe, echo = os.path.join(tools, "scr_speed_probe.py"), os.path.join(tools, "scr_echo_server.py")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    serve = [sys.executable, "-m", "madsim.cli", "serve", "--track", "g-track-1", "--cars", "car1-trb1",
+             "--countdown", "0", "--max-ticks", str(ticks + 10), "--port"]
+    servers = [("echo", None), ("madsim", here)] + ([("baseline", baseline)] if baseline else [])
     results: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for _ in range(reps):
         for client in ("minimal", "full"):
-            for server_name in ("echo", "madsim"):
+            for server_name, checkout in servers:
                 port = free_udp_port()
-                if server_name == "echo":
-                    cmd = [sys.executable, echo, str(port)]
-                else:
-                    cmd = [sys.executable, "-m", "madsim.cli", "serve", "--track", "g-track-1",
-                           "--cars", "car1-trb1", "--port", str(port), "--countdown", "0",
-                           "--max-ticks", str(ticks + 10)]
-                server = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                if checkout is None:
+                    cmd, env, cwd = [sys.executable, echo, str(port)], None, None
+                else:    # that checkout's madsim, from its own folder
+                    cmd, env, cwd = serve + [str(port)], dict(os.environ, PYTHONPATH=checkout), checkout
+                server = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                          env=env, cwd=cwd)
                 try:
                     out = subprocess.run([sys.executable, probe, str(ticks), str(port)]
                                          + (["--full"] if client == "full" else []),
@@ -154,15 +161,17 @@ def probe_runs(tools: str, reps: int, ticks: int) -> None:
                 rate = float(out.split("ticks/s=")[1].split()[0])
                 wait = float(out.split("longest_wait=")[1].split()[0])
                 results.setdefault((server_name, client), []).append((rate, wait))
-                print(f"{server_name:6} {client:7} {out.strip()}", flush=True)
+                print(f"{server_name:8} {client:7} {out.strip()}", flush=True)
     for client in ("minimal", "full"):
         med = {}
-        for server_name in ("echo", "madsim"):
-            runs = results[(server_name, client)]
-            med[server_name] = sorted(r for r, _ in runs)[len(runs) // 2]
-            print(f"{server_name:6} {client:7} median {med[server_name]:,.0f} ticks/s, "
-                  f"longest wait {max(w for _, w in runs) * 1000:.0f} ms over {len(runs)} runs")
-        print(f"madsim / echo, {client} client: {med['madsim'] / med['echo']:.0%}")
+        for server_name, _ in servers:
+            rates = sorted(r for r, _ in results[(server_name, client)])
+            med[server_name] = rates[len(rates) // 2]
+            print(f"{server_name:8} {client:7} median {med[server_name]:,.0f} ticks/s (range "
+                  f"{rates[0]:,.0f}-{rates[-1]:,.0f}), longest wait "
+                  f"{max(w for _, w in results[(server_name, client)]) * 1000:.0f} ms over {len(rates)} runs")
+        for server_name, _ in servers[1:]:
+            print(f"{server_name} / echo, {client} client: {med[server_name] / med['echo']:.0%}")
 
 
 def main() -> None:
@@ -170,6 +179,8 @@ def main() -> None:
     ap.add_argument("--tools", default=None, help="folder of scr_speed_probe.py and "
                     "scr_echo_server.py: run the acceptance procedure (see the docstring)")
     ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--baseline", default=None, help="with --tools: another checkout whose "
+                    "`madsim serve` runs back to back with this one's")
     ap.add_argument("--ticks", type=int, default=20_000)
     ap.add_argument("--track", default="madsim-oval")
     ap.add_argument("--case", choices=sorted(CONTROLS), action="append",
@@ -178,7 +189,7 @@ def main() -> None:
                     "(one case only)")
     args = ap.parse_args()
     if args.tools:
-        probe_runs(args.tools, args.reps, args.ticks)
+        probe_runs(args.tools, args.reps, args.ticks, args.baseline)
         return
     cases = args.case or ["echo", "rest", "wall"]
     if args.profile and len(cases) != 1:

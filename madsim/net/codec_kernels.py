@@ -23,7 +23,9 @@ import math
 import numba
 import numpy as np
 
+MAX_DATAGRAM_BYTES = 1000  # receive buffer of the C++ server and clients (`UDP_MSGLEN`)
 TIE_MARGIN = 1e-7          # |fraction - 0.5| below this: the exact path decides the rounding
+LOG10_2 = 0.30102999566398120
 MAX_VALUE_CHARS = 16       # the longest %g text of a float32 ("-1.23457e-05" is 12) or a C int
 
 _POW10 = np.array([10.0 ** k for k in range(23)])   # exact doubles
@@ -44,7 +46,7 @@ def _scale(a, p):
     return a / _POW10[p]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _put_int(out, i, pos, q):
     """Decimal digits of q >= 0 at out[i, pos:]; returns the new end."""
     if q == 0:
@@ -61,7 +63,7 @@ def _put_int(out, i, pos, q):
     return pos + n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _put_g(out, i, pos, f):
     """C `printf("%g", f)` of a finite double `f` at out[i, pos:]; returns the new end, or -1 when
     the 6-digit rounding is too close to a tie to decide in double arithmetic. The last 6
@@ -73,9 +75,11 @@ def _put_g(out, i, pos, f):
     if a == 0.0:
         out[i, pos] = 48
         return pos + 1
-    e = int(math.floor(math.log10(a)))
+    # 10^e <= a < 10^(e+1), estimated from the binary exponent (off by one at most: the loop
+    # below corrects it); log10 costs more than the rest of the value
+    e = int(math.floor((math.frexp(a)[1] - 1) * LOG10_2))
     q = 0
-    for _ in range(3):   # the log10 estimate is off by one at most
+    for _ in range(3):   # the estimate is low by one at most
         x = _scale(a, 5 - e)
         r = math.floor(x)
         frac = x - r
@@ -140,7 +144,7 @@ def _put_g(out, i, pos, f):
     return _put_int(out, i, pos, ae)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
     """State messages of every row of `rows` (N, V) in wire order into `out` (N, W) uint8.
 
@@ -177,7 +181,14 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
                 if not math.isfinite(f):
                     ok = False
                     break
-                pos = _put_g(out, i, pos, f)
+                a = abs(f)
+                if a < 1e6 and a == math.floor(a):   # an integer of up to 6 digits: %g prints it so
+                    if math.copysign(1.0, f) < 0.0:
+                        out[i, pos] = 45
+                        pos += 1
+                    pos = _put_int(out, i, pos, int(a))
+                else:
+                    pos = _put_g(out, i, pos, f)
                 if pos < 0:
                     ok = False
                     break
@@ -323,3 +334,15 @@ def decode_controls_row(buf, n, text, ends, slots, out):
             return False
         pos += 1
     return pos == n
+
+
+@numba.njit(cache=True)
+def decode_stock(buf, n, cpp, snakeoil, out):
+    """A control datagram buf[:n] (uint8, n its whole length) in either stock layout (`cpp`,
+    `snakeoil`: `layout_table` tuples) into out (8,) as `decode_controls_row`; False when it is
+    neither, or longer than the C++ server reads (the exact Python parser decides then)."""
+    if n > MAX_DATAGRAM_BYTES or (n == MAX_DATAGRAM_BYTES and buf[n - 1] != 0):
+        return False
+    if decode_controls_row(buf, n, cpp[0], cpp[1], cpp[2], out):
+        return True
+    return decode_controls_row(buf, n, snakeoil[0], snakeoil[1], snakeoil[2], out)

@@ -77,7 +77,7 @@ class ProtocolError(ValueError):
 
 # --- constants ------------------------------------------------------------------------------
 
-MAX_DATAGRAM_BYTES = 1000
+MAX_DATAGRAM_BYTES = K.MAX_DATAGRAM_BYTES
 """Receive buffer of the C++ server, the C++ client and pyScrcClient (`UDP_MSGLEN`)."""
 MAX_STATE_BYTES = MAX_DATAGRAM_BYTES - 1
 """Longest state text (NUL excluded) that fits those buffers (§2 Size)."""
@@ -281,6 +281,16 @@ class SensorEncoder:
         self._out = np.zeros((1, self._width), dtype=np.uint8)
         self._length = np.zeros(1, dtype=np.int64)
 
+    @property
+    def message_width(self) -> int:
+        """Bytes per row of the output buffer `codec_kernels.encode_rows` needs."""
+        return self._width
+
+    def kernel_args(self) -> tuple:
+        """`codec_kernels.encode_rows`'s arguments after the rows: (is_int, lit, lit_end,
+        max_bytes), for a compiled caller such as the SCR server's tick."""
+        return self._is_int, self._lit, self._lit_end, self.max_bytes
+
     def encode(self, values: Mapping[str, Any], img: Any = None) -> bytes:
         """One car's state message from a mapping of SCR name -> value(s); ends with NUL."""
         try:
@@ -382,23 +392,24 @@ class SensorEncoder:
         return msg
 
 
-_DEFAULT_ENCODER = SensorEncoder()
+STATE_ENCODER = SensorEncoder()
+"""The SRV13 state encoder the module functions use."""
 
 
 def encode_sensors(values: Mapping[str, Any], img: Any = None) -> bytes:
     """SRV13 state message (SENSOR_FIELDS) for one car; see SensorEncoder.encode."""
-    return _DEFAULT_ENCODER.encode(values, img)
+    return STATE_ENCODER.encode(values, img)
 
 
 def encode_sensors_flat(row: Any, img: Any = None) -> bytes:
     """SRV13 state message from 79 values in wire order; see SensorEncoder.encode_flat."""
-    return _DEFAULT_ENCODER.encode_flat(row, img)
+    return STATE_ENCODER.encode_flat(row, img)
 
 
 def encode_sensor_rows(rows: np.ndarray) -> list[bytes]:
     """SRV13 state messages of N cars from an (N, 79) array in wire order (one compiled call);
     see SensorEncoder.encode_rows."""
-    return _DEFAULT_ENCODER.encode_rows(rows)
+    return STATE_ENCODER.encode_rows(rows)
 
 
 # --- state message, client side -------------------------------------------------------------
@@ -597,7 +608,8 @@ def decode_controls(data: bytes) -> Controls:
     return _decode_controls_general(data)
 
 
-_LAYOUTS = (K.layout_table(K.CPP_ORDER), K.layout_table(K.SNAKEOIL_ORDER))
+STOCK_LAYOUTS = (K.layout_table(K.CPP_ORDER), K.layout_table(K.SNAKEOIL_ORDER))
+"""The two stock control layouts as `codec_kernels.decode_stock` takes them."""
 
 
 def decode_controls_into(data: bytes, out: np.ndarray) -> bool:
@@ -605,13 +617,7 @@ def decode_controls_into(data: bytes, out: np.ndarray) -> bool:
     float64 with steer, accel, brake, gear, clutch, focus (any value), meta and returns True
     (the datagram is well formed), or returns False (out unspecified): use decode_controls."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    n = min(buf.shape[0], MAX_DATAGRAM_BYTES)
-    if n != buf.shape[0] or n == MAX_DATAGRAM_BYTES and buf[-1] != 0:
-        return False
-    for text, ends, slots in _LAYOUTS:
-        if K.decode_controls_row(buf, n, text, ends, slots, out):
-            return True
-    return False
+    return K.decode_stock(buf, buf.shape[0], *STOCK_LAYOUTS, out)
 
 
 def _decode_controls_general(data: bytes) -> Controls:

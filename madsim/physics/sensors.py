@@ -177,6 +177,41 @@ def apply_noise(frame: SensorFrame, rng: np.random.Generator) -> None:
         values *= draw
 
 
+@numba.njit(cache=True)
+def focus_request(cars, focus_deg, requested, next_allowed, earliest):
+    """requested[cars[k]] = focus_deg[k] where it is in [-90, 90] deg, else FOCUS_NONE;
+    earliest[0] lowered to the cooldown end of a car that now asks (see focus_due)."""
+    for k in range(cars.shape[0]):
+        i = cars[k]
+        f = focus_deg[k]
+        if -90.0 <= f <= 90.0:
+            requested[i] = f
+            earliest[0] = min(earliest[0], next_allowed[i])
+        else:
+            requested[i] = FOCUS_NONE
+
+
+@numba.njit(cache=True)
+def focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due):
+    """due[k] = car cars[k] gets a focus reading at time_s[k]: on the road (on_track[k]), a focus
+    requested, its cooldown over; starts those cars' cooldowns. earliest[0] = the first time at
+    which any car with a request may be due (inf: none asks). Returns how many are due."""
+    count = 0
+    for k in range(cars.shape[0]):
+        i = cars[k]
+        ok = on_track[k] and requested[i] != FOCUS_NONE and time_s[k] >= next_allowed[i]
+        due[k] = ok
+        if ok:
+            next_allowed[i] = time_s[k] + FOCUS_COOLDOWN_S
+            count += 1
+    first = math.inf
+    for i in range(requested.shape[0]):
+        if requested[i] != FOCUS_NONE:
+            first = min(first, next_allowed[i])
+    earliest[0] = first
+    return count
+
+
 class FocusState:
     """Per-car focus bookkeeping: the angle requested in the previous control message and the
     simulated time from which the next valid reading may be produced (one per second)."""
@@ -184,19 +219,26 @@ class FocusState:
     def __init__(self, n: int):
         self.requested_deg = np.zeros(n)          # a client that never asks gets focus 0
         self.next_allowed_s = np.zeros(n)
-        self.earliest_s = 0.0                      # min over cars of next_allowed_s
+        self.earliest = np.zeros(1)                # (1,): no car can be due before this time, s
+
+    @property
+    def earliest_s(self) -> float:
+        """No car can get a reading before this simulated time (s): due() need not run."""
+        return float(self.earliest[0])
 
     def request(self, cars: np.ndarray, focus_deg: np.ndarray) -> None:
         """Store the focus requests of this tick's control messages (used for the next state)."""
-        f = np.asarray(focus_deg, dtype=np.float64)
-        self.requested_deg[cars] = np.where((f >= -90) & (f <= 90), f, FOCUS_NONE)
+        f = np.ascontiguousarray(np.broadcast_to(np.asarray(focus_deg, dtype=np.float64), cars.shape))
+        focus_request(np.ascontiguousarray(cars, dtype=np.int64), f, self.requested_deg,
+                      self.next_allowed_s, self.earliest)
 
     def due(self, cars: np.ndarray, race_time_s: np.ndarray, on_track: np.ndarray) -> np.ndarray:
         """Which of `cars` get a valid reading now; advances their cooldown."""
-        ok = on_track & (self.requested_deg[cars] != FOCUS_NONE) & (race_time_s >= self.next_allowed_s[cars])
-        self.next_allowed_s[cars[ok]] = race_time_s[ok] + FOCUS_COOLDOWN_S
-        self.earliest_s = float(self.next_allowed_s.min())
-        return ok
+        due = np.zeros(cars.shape[0], dtype=np.bool_)
+        focus_due(np.ascontiguousarray(cars, dtype=np.int64), np.ascontiguousarray(race_time_s, dtype=np.float64),
+                  np.ascontiguousarray(on_track, dtype=np.bool_), self.requested_deg, self.next_allowed_s,
+                  self.earliest, due)
+        return due
 
 
 class SensorSuite:
@@ -245,15 +287,31 @@ class SensorSuite:
         sensor_kernel(cars, w.state, geo, runs, piece_run, half, self.angles_deg, w.race_pos,
                       self.dist_origin, _active(w, self), SENSOR_RANGE_M, flat)
         st = w.state
-        due = ()
-        if st.shape[0] and st[0, L.S_TIME] >= self.focus.earliest_s:   # one clock for all cars
-            due = np.nonzero(self.focus.due(cars, st[cars, L.S_TIME], np.abs(flat[:, O_TPOS]) <= 1.0))[0]
-        for j in due:
-            i = cars[j]
-            centre = self.focus.requested_deg[i]
-            flat[j, O_FOCUS:O_FOCUS + 5] = w.track.rangefinders(
-                st[i:i + 1, L.S_X], st[i:i + 1, L.S_Y], st[i:i + 1, L.S_YAW], centre + np.arange(-2.0, 3.0),
-                s_hint=st[i:i + 1, L.S_S], max_range_m=SENSOR_RANGE_M)[0]
+        due = None
+        if st.shape[0] and st[0, L.S_TIME] >= self.focus.earliest[0]:   # one clock for all cars
+            due = self.focus.due(cars, st[cars, L.S_TIME], np.abs(flat[:, O_TPOS]) <= 1.0)
+        return self.finish_frame(flat, cars, due)
+
+    def kernel_args(self) -> tuple:
+        """`sensor_kernel`'s arguments after (cars, st) up to the output, and the focus
+        arrays (requested, next allowed, earliest): what a compiled caller such as the SCR
+        server's tick passes."""
+        w = self.world
+        return (*self._track_args, self.angles_deg, w.race_pos, self.dist_origin, _active(w, self),
+                SENSOR_RANGE_M, self.focus.requested_deg, self.focus.next_allowed_s, self.focus.earliest)
+
+    def finish_frame(self, flat: np.ndarray, cars: np.ndarray, due) -> SensorFrame:
+        """The frame of `sensor_kernel`'s rows `flat` (N, 79) of `cars`: focus readings where
+        `due` (bool (N,) from FocusState.due, or None) and noise if the suite is noisy."""
+        if due is not None:
+            w = self.world
+            st = w.state
+            for j in np.flatnonzero(due):
+                i = cars[j]
+                centre = self.focus.requested_deg[i]
+                flat[j, O_FOCUS:O_FOCUS + 5] = w.track.rangefinders(
+                    st[i:i + 1, L.S_X], st[i:i + 1, L.S_Y], st[i:i + 1, L.S_YAW], centre + np.arange(-2.0, 3.0),
+                    s_hint=st[i:i + 1, L.S_S], max_range_m=SENSOR_RANGE_M)[0]
         frame = SensorFrame(flat, cars)
         if self.noisy:
             apply_noise(frame, self.rng)

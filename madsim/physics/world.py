@@ -16,7 +16,7 @@ import numpy as np
 
 from madsim.cars.spec import CarSpec
 from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
-from madsim.physics import kernel
+from madsim.physics import kernel, world_tick
 from madsim.physics import layout as L
 from madsim.physics.tables import QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
@@ -109,7 +109,12 @@ class World:
             self._path, self._turn = np.zeros(n), np.zeros(n)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
+            self._stepper_serial = mod.advance_until_near
             self._stepper = mod.advance_until_near_parallel if parallel else mod.advance_until_near
+        self.tick_args: tuple | None = None
+        """`world_tick.step_world`'s arguments after (u, nsub) (contact worlds with serial
+        stepping; else None): what a compiled caller such as the SCR server passes."""
+        self._set_tick_args()
         self.reset()
 
     # --- set-up -------------------------------------------------------------------------------
@@ -227,42 +232,63 @@ class World:
         if u.shape != (self.n_cars, 5):
             raise ValueError(f"controls must have shape ({self.n_cars}, 5) = "
                              f"(steer, accel, brake, gear, clutch) per car, got {u.shape}")
-        info = self._info
-        kernel.check_controls(u, info)
-        if info[0]:
-            car, col = divmod(int(info[1]), 5)
-            if self.nan_policy == "raise":
-                raise ValueError(f"controls: car {car} {L.CONTROL_COLUMNS[col]} is "
-                                 f"{u[car, col]!r} (must be finite); {int(info[0])} non-finite value(s)")
-            u = u.copy()
-            bad = ~np.isfinite(u)
-            self.nan_count += bad.sum(axis=1)
-            u[bad] = 0.0
+        if self.tick_args is not None:
+            k = world_tick.step_world(u, nsub, *self.tick_args)
+            if k == world_tick.NONFINITE:
+                u = self._nonfinite(u)
+                k = world_tick.step_world(u, nsub, *self.tick_args)
+            self.finish_tick(u, nsub, k)
+            return
+        kernel.check_controls(u, self._info)
+        if self._info[0]:
+            u = self._nonfinite(u)
         st = self.state
         if self.n_cars > 1:      # slipstream: from the poses at the start of the tick
             kernel.slipstream(st, self._cp, 0, self.n_cars, self.track.length)
         if self._solver is None:
             self._advance(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
                           u, nsub, DT, self.fuel_on)
-        else:
-            self._step_with_contact(u, nsub)
+        else:        # the threaded stepper
+            self.contact_wall[:] = False
+            self.contact_car[:] = False
+            k = self._contact_steps(u, 0, nsub)
+            if self._near[0]:
+                self.finish_tick(u, nsub, k)
+                return
+            self.contact_pairs = []
         if self.n_cars > 1:
             self._update_race_pos()
 
-    def _step_with_contact(self, u: np.ndarray, nsub: int) -> None:
+    def _nonfinite(self, u: np.ndarray) -> np.ndarray:
+        """`nan_policy` for controls u with non-finite values (self._info from check_controls):
+        raise, or a copy with them zeroed (counted per car in nan_count)."""
+        info = self._info
+        car, col = divmod(int(info[1]), 5)
+        if self.nan_policy == "raise":
+            raise ValueError(f"controls: car {car} {L.CONTROL_COLUMNS[col]} is "
+                             f"{u[car, col]!r} (must be finite); {int(info[0])} non-finite value(s)")
+        u = u.copy()
+        bad = ~np.isfinite(u)
+        self.nan_count += bad.sum(axis=1)
+        u[bad] = 0.0
+        return u
+
+    def finish_tick(self, u: np.ndarray, nsub: int, k: int) -> None:
+        """Complete a tick that the compiled stepper (`world_tick.step_world`, or the sub-step
+        loop) left after sub-step k with something near (self._near[0] > 0): the contact solver
+        resolves it, and the loop goes on to sub-step nsub; contact flags, pairs and damage of
+        the tick, then race positions. With nothing near (the usual tick) only the pairs are
+        cleared. u: the (N, 5) controls of the tick, already checked."""
+        near = self._near
+        if near[0] == 0:
+            if self.contact_pairs:
+                self.contact_pairs = []
+            return
         st, solver = self.state, self._solver
         wall, car = self.contact_wall, self.contact_car      # filled in place, no allocation
-        wall[:] = False
-        car[:] = False
         pairs: list[tuple[int, int]] = []
-        cols, piece, near = self._contact_cols, self._piece_i, self._near
-        k = 0
-        while k < nsub:
-            k = self._stepper(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
-                              u, k, nsub, DT, self.fuel_on, cols[0], cols[1], cols[2], piece,
-                              solver.broad_phase_args, near, self._snap, self._path, self._turn)
-            if near[0] == 0:
-                break
+        cols, piece = self._contact_cols, self._piece_i
+        while True:       # resolve after sub-step k, then sub-steps on to the next near one
             rep = solver.resolve(*cols, piece, DT)
             hit_w, hit_c = np.asarray(rep.wall, dtype=bool), np.asarray(rep.car, dtype=bool)
             if hit_w.any() or hit_c.any():
@@ -272,12 +298,39 @@ class World:
                 if self.damage_on:
                     st[:, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
                 kernel.refresh(st, self._cp, self._pt, self._surf, self._tsc, True)
+            if k >= nsub:
+                break
+            k = self._contact_steps(u, k, nsub)
+            if near[0] == 0:
+                break
         self.contact_pairs = pairs
+        self._set_tick_args()        # resolve() may have replaced the broad phase's arrays
+        if self.n_cars > 1:
+            self._update_race_pos()
+
+    def _contact_steps(self, u: np.ndarray, k: int, nsub: int) -> int:
+        """Sub-steps k.. up to the next one after which something is near (see finish_tick)."""
+        cols = self._contact_cols
+        return self._stepper(self.state, self._cp, self._curve_w, self._curve_t, self._pt, self._surf,
+                             self._tsc, u, k, nsub, DT, self.fuel_on, cols[0], cols[1], cols[2],
+                             self._piece_i, self._solver.broad_phase_args, self._near, self._snap,
+                             self._path, self._turn)
+
+    def _set_tick_args(self) -> None:
+        """(Re)build `tick_args`: a new tuple only when the contact solver replaced its arrays."""
+        if self._solver is None or self._stepper is not self._stepper_serial:
+            return
+        bp = self._solver.broad_phase_args
+        if self.tick_args is not None and self.tick_args[15] is bp:
+            return
+        cols = self._contact_cols
+        self.tick_args = (self.state, self._cp, self._curve_w, self._curve_t, self._pt, self._surf,
+                          self._tsc, DT, self.fuel_on, self.track.length, self._info, cols[0], cols[1],
+                          cols[2], self._piece_i, bp, self._near, self._snap, self._path, self._turn,
+                          self.contact_wall, self.contact_car, self.race_pos)
 
     def _update_race_pos(self) -> None:
-        st = self.state
-        order = np.lexsort((np.arange(self.n_cars), -st[:, L.S_DIST], -st[:, L.S_LAPS]))
-        self.race_pos[order] = np.arange(1, self.n_cars + 1)
+        world_tick.race_positions(self.state, self.race_pos)
 
     # --- read-only views ---------------------------------------------------------------------------
 

@@ -243,7 +243,7 @@ def test_compiled_row_encoder_prints_like_glibc(floats, ints):
 def test_compiled_encoder_leaves_near_ties_and_non_finite_rows_to_the_exact_path():
     from madsim.net import codec_kernels as K
 
-    enc = P._DEFAULT_ENCODER
+    enc = P.STATE_ENCODER
     row, expected = _rows_oracle(np.full(76, 1.5, dtype=np.float32), (1, 1, 0))
     rows = np.stack([row, row, row])
     rows[1, 0] = 1234565.0           # exactly half way at the 6th digit: glibc rounds to even
@@ -263,7 +263,7 @@ def test_compiled_encoder_leaves_near_ties_and_non_finite_rows_to_the_exact_path
 def test_fast_and_checked_paths_agree(seed):
     values = state_values(np.random.default_rng(seed))
     fast = encode_sensors(values)
-    assert P._DEFAULT_ENCODER._encode_checked(values, None) == fast
+    assert P.STATE_ENCODER._encode_checked(values, None) == fast
     as_arrays = {k: np.asarray(v) for k, v in values.items()}
     assert encode_sensors(as_arrays) == fast
 

@@ -28,7 +28,7 @@ from madsim.net.client import ScrClient, simple_driver
 
 TRACK = "madsim-oval"          # 1602.48 m, 15 m wide; the grid is on the start straight
 HALF_WIDTH_M = 7.5
-START_S = 60.0                 # bound on a server's start-up (imports, numba cache, track load)
+START_S = 180.0                # bound on a server's start-up (a cold numba cache compiles ~1 min)
 WAIT_S = 30.0                  # bound on anything else a test waits for (a busy CI box)
 SERVE = [sys.executable, "-m", "madsim.cli", "serve"]
 

@@ -20,7 +20,7 @@ from udp import free_ports
 from madsim.net import torcs_standin as T
 from madsim.net.client import ScrClient
 
-START_S = 60.0
+START_S = 180.0   # a cold numba cache compiles the race kernels for ~1 min
 WAIT_S = 30.0
 STANDIN = [sys.executable, "-m", "madsim.net.torcs_standin"]
 

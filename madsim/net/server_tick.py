@@ -1,0 +1,297 @@
+"""The SCR server's tick as one compiled call: the clients' control datagrams -> controls and
+focus requests -> the World advanced one tick -> every car's sensors -> the state messages'
+bytes. The Python loop around it only receives and sends datagrams and keeps the books.
+
+The stages are the engine's own kernels (`codec_kernels.decode_stock`, `world_tick.step_world`,
+`sensors.sensor_kernel` and `focus_due`, `codec_kernels.encode_rows`), so the bytes are those of
+the in-process doors (World.step, SensorSuite.frame, protocol.encode_sensor_rows). Whatever a
+stage cannot finish exactly stops the call at that stage and is done by the Python path of the
+same stage (`ServerTick._python_stage`), which then goes on: a datagram in no stock layout, a
+control that is not finite, something near a car (the pymunk narrow phase), a focus reading
+due, sensor noise or the start countdown, a value the compiled encoder leaves to the exact one.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from madsim.facts import TICK_S
+from madsim.net import protocol as P
+from madsim.net.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i1_vector,
+                                    i8_matrix, i8_vector, u1_matrix, u1_vector)
+from madsim.net.codec_kernels import decode_stock, encode_rows
+from madsim.physics.layout import S_DAMAGE, S_LAPS, S_TIME
+from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR, O_TPOS,
+                                    SENSOR_OFFSETS, focus_due, focus_request, sensor_kernel)
+from madsim.physics.world_tick import step_world
+
+DECODE, STEP, SENSE, ENCODE, DONE = 0, 1, 2, 3, 4
+"""The stages in order; `server_tick` returns the one Python must do, or DONE."""
+EVENT = 8
+"""Or-ed into DONE: a car's lap count changed, a car is over the damage limit, or a client
+asked for a restart (meta 1): the loop's bookkeeping has work."""
+
+# The arrays `server_tick` reads, in the order of its address table (`array_table`): name,
+# dtype, dimensions, memory order. World rows follow World.tick_args (contact arrays: the
+# ContactSolver's broad-phase arguments), sensor rows SensorSuite.kernel_args.
+TABLE = (
+    ("inbox", "u1", 2, "C"), ("inlen", "i8", 1, "C"), ("meta", "i8", 1, "C"),
+    ("cpp_text", "u1", 1, "C"), ("cpp_ends", "i8", 1, "C"), ("cpp_slots", "i8", 1, "C"),
+    ("snakeoil_text", "u1", 1, "C"), ("snakeoil_ends", "i8", 1, "C"), ("snakeoil_slots", "i8", 1, "C"),
+    ("controls", "f8", 2, "C"), ("steps", "i8", 1, "C"), ("cars", "i8", 1, "C"),
+    ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
+    ("piece_table", "f8", 2, "C"), ("surfaces", "f8", 2, "C"), ("track_scalars", "f8", 1, "C"),
+    ("info", "i8", 1, "C"), ("x", "f8", 1, "C"), ("y", "f8", 1, "C"), ("yaw", "f8", 1, "C"),
+    ("piece", "i8", 1, "C"),
+    ("bp_geo", "f8", 2, "C"), ("bp_bar", "f8", 2, "C"), ("bp_cars", "f8", 2, "C"), ("bp_prm", "f8", 1, "C"),
+    ("bp_wall_cache", "f8", 2, "C"), ("bp_vref", "f8", 2, "C"), ("bp_pairs", "i8", 2, "C"),
+    ("bp_meta", "i8", 1, "C"), ("bp_flags", "i1", 1, "C"), ("bp_slack", "f8", 1, "C"),
+    ("near", "i8", 1, "C"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
+    ("contact_wall", "b1", 1, "C"), ("contact_car", "b1", 1, "C"), ("race_pos", "i8", 1, "C"),
+    ("track_geo", "f8", 2, "C"), ("track_runs", "f8", 2, "C"), ("piece_run", "i8", 1, "C"),
+    ("angles", "f8", 2, "C"), ("dist_origin", "f8", 1, "C"), ("active", "b1", 1, "C"),
+    ("focus_requested", "f8", 1, "C"), ("focus_next", "f8", 1, "C"), ("focus_earliest", "f8", 1, "C"),
+    ("due", "b1", 1, "C"), ("flat", "f8", 2, "C"),
+    ("is_int", "b1", 1, "C"), ("literals", "u1", 1, "C"), ("literal_ends", "i8", 1, "C"),
+    ("out", "u1", 2, "C"), ("out_len", "i8", 1, "C"), ("laps_seen", "f8", 1, "C"),
+)
+(INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, CP,
+ CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
+ BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
+ PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
+ OUT_LEN, LAPS_SEEN) = range(len(TABLE))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, length, half_width,
+                max_range, max_bytes, max_damage):
+    """Run the stages first..stop-1 of one tick on the World state `st`, its scratch copy `snap`
+    and the arrays of address table `t` (`TABLE`);
+    returns the first stage left to Python (its inputs complete, its outputs not), `stop` if
+    it was reached, or DONE (| EVENT). The scalars: the World's sub-step (s), fuel flag and
+    track length (m), the track's half width and the sensors' range (m), the state message's
+    byte limit, the damage limit.
+
+    DECODE: car i's datagram is inbox[i, :inlen[i]] (inlen[i] < 0: no answer this tick, its
+      controls and focus request stay); into controls (N, 5), meta (N,) and the focus
+      requests. Stops where a datagram is in no stock layout (meta[i] = -1 marks those).
+    STEP (when `stepping`, i.e. not in the countdown): `world_tick.step_world`; steps[0] = its
+      answer. Stops on a non-finite control (steps[0] < 0: nothing was changed) or something
+      near (after sub-step steps[0]: World.finish_tick goes on from there).
+    SENSE: `sensor_kernel` into flat (N, 79) and the focus cooldowns (`focus_due`); stops when
+      a focus reading is due (due (N,) bool), and always when not `plain` (noise or the
+      countdown to apply).
+    ENCODE: `codec_kernels.encode_rows` into out, out_len; stops when a row is left to the
+      exact encoder (out_len -1).
+    Then DONE, with EVENT when the lap counts differ from laps_seen (N,), a damage exceeds
+    max_damage, or a decoded meta is 1.
+    """
+    u = f8_matrix(t, U)
+    n = u.shape[0]
+    cars = i8_vector(t, CARS)
+    requested, next_allowed, earliest = f8_vector(t, REQUESTED), f8_vector(t, NEXT), f8_vector(t, EARLIEST)
+    event = False
+    if first <= DECODE < stop:
+        inbox, inlen, meta = u1_matrix(t, INBOX), i8_vector(t, INLEN), i8_vector(t, META)
+        cpp = (u1_vector(t, CPP_TEXT), i8_vector(t, CPP_ENDS), i8_vector(t, CPP_SLOTS))
+        snakeoil = (u1_vector(t, SO_TEXT), i8_vector(t, SO_ENDS), i8_vector(t, SO_SLOTS))
+        dec = np.empty(8)
+        asked = np.empty(n, dtype=np.int64)
+        focus = np.empty(n)
+        m = 0
+        whole = True
+        for i in range(n):
+            if inlen[i] < 0:
+                meta[i] = 0
+                continue
+            if not decode_stock(inbox[i], inlen[i], cpp, snakeoil, dec):
+                meta[i] = -1
+                whole = False
+                continue
+            for j in range(5):
+                u[i, j] = dec[j]
+            meta[i] = int(dec[6])
+            event = event or meta[i] == 1
+            asked[m] = i
+            focus[m] = dec[5]
+            m += 1
+        focus_request(asked[:m], focus[:m], requested, next_allowed, earliest)
+        if not whole:
+            return DECODE
+    race_pos = i8_vector(t, RACE_POS)
+    if first <= STEP < stop and stepping:
+        near = i8_vector(t, NEAR)
+        steps = i8_vector(t, STEPS)
+        bp = (f8_matrix(t, BP_GEO), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS), f8_vector(t, BP_PRM),
+              f8_matrix(t, BP_WALL), f8_matrix(t, BP_VREF), i8_matrix(t, BP_PAIRS), i8_vector(t, BP_META),
+              i1_vector(t, BP_FLAGS), f8_vector(t, BP_SLACK))
+        steps[0] = step_world(u, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
+                              f8_matrix(t, PT), f8_matrix(t, SURF), f8_vector(t, TSC), dt, fuel_on, length,
+                              i8_vector(t, INFO), f8_vector(t, X), f8_vector(t, Y), f8_vector(t, YAW),
+                              i8_vector(t, PIECE), bp, near, snap, f8_vector(t, PATH),
+                              f8_vector(t, TURN), b1_vector(t, WALL), b1_vector(t, CAR), race_pos)
+        if steps[0] < 0 or near[0] != 0:
+            return STEP
+    if first <= SENSE < stop:
+        flat, due = f8_matrix(t, FLAT), b1_vector(t, DUE)
+        sensor_kernel(cars, st, f8_matrix(t, GEO), f8_matrix(t, RUNS), i8_vector(t, PIECE_RUN), half_width,
+                      f8_matrix(t, ANGLES), race_pos, f8_vector(t, ORIGIN), b1_vector(t, ACTIVE), max_range,
+                      flat)
+        count = 0
+        if st[0, S_TIME] >= earliest[0]:        # one clock for all cars
+            time_s = np.empty(cars.shape[0])
+            on_track = np.empty(cars.shape[0], dtype=np.bool_)
+            for k in range(cars.shape[0]):
+                time_s[k] = st[cars[k], S_TIME]
+                on_track[k] = abs(flat[k, O_TPOS]) <= 1.0
+            count = focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due)
+        if count > 0 or not plain:
+            if count == 0:
+                due[:] = False
+            return SENSE
+    if first <= ENCODE < stop:
+        out_len = i8_vector(t, OUT_LEN)
+        encode_rows(f8_matrix(t, FLAT), b1_vector(t, IS_INT), u1_vector(t, LIT), i8_vector(t, LIT_END),
+                    max_bytes, u1_matrix(t, OUT), out_len)
+        for i in range(out_len.shape[0]):
+            if out_len[i] < 0:
+                return ENCODE
+    if stop < DONE:
+        return stop
+    laps_seen = f8_vector(t, LAPS_SEEN)
+    for i in range(n):
+        if st[i, S_LAPS] != laps_seen[i] or st[i, S_DAMAGE] > max_damage:
+            event = True
+    return DONE | EVENT if event else DONE
+
+
+class ServerTick:
+    """One race's tick: the buffers `server_tick` reads and writes, the call, and the Python path
+    of each stage for what the call leaves (or for every stage, for a World without
+    `tick_args`).
+
+    The server receives car i's datagram into `inbox[i]` and sets `inlen[i]` (-1: no answer),
+    runs `run(...)`, and sends `message(i)`. `u` (N, 5) holds the controls applied (a car that
+    did not answer keeps its last ones); `meta` (N,) the meta values of this tick's answers.
+    """
+
+    def __init__(self, world, suite, controls: np.ndarray, inbox: np.ndarray, inlen: np.ndarray,
+                 max_damage: float):
+        n = world.n_cars
+        self.world, self.suite, self.u = world, suite, controls
+        self.inbox, self.inlen = inbox, inlen
+        inlen[:] = -1
+        self.meta = np.zeros(n, dtype=np.int64)
+        self.due = np.zeros(n, dtype=np.bool_)
+        self.steps = np.zeros(1, dtype=np.int64)
+        self.cars = np.arange(n, dtype=np.int64)
+        self.flat = np.zeros((n, N_VALUES))
+        self.out = np.zeros((n, P.STATE_ENCODER.message_width), dtype=np.uint8)
+        self.out_len = np.zeros(n, dtype=np.int64)
+        self._messages = [memoryview(self.out[i]) for i in range(n)]
+        self.laps_seen = world.state[:, S_LAPS].copy()
+        self.max_damage = float(max_damage)
+        self.bad_datagrams = 0             # answers not well formed (applied as TORCS reads them)
+        self.compiled = world.tick_args is not None
+        self._world_args = None
+        self._set_args()
+
+    def _set_args(self) -> None:
+        """The address table and scalars of `server_tick`, built again when the World's
+        arguments are a new tuple (its contact solver replaced an array)."""
+        w = self.world.tick_args
+        if w is None or w is self._world_args:
+            return
+        self._world_args = w
+        geo, runs, piece_run, half, angles, _, origin, active, max_range, *focus = self.suite.kernel_args()
+        is_int, lit, lit_end, max_bytes = P.STATE_ENCODER.kernel_args()
+        arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
+                  self.steps, self.cars, *w[1:7], *w[10:15], *w[15], w[16], *w[18:], geo, runs, piece_run, angles,
+                  origin, active, *focus, self.due, self.flat, is_int, lit, lit_end, self.out, self.out_len,
+                  self.laps_seen)
+        self._arrays = arrays             # alive as long as the table is used
+        # the state and its scratch copy go as arguments: typed as World.step's callers see them
+        # (C order for one car), so the physics kernels are compiled once for both
+        self.args = (w[0], w[17], address_table(arrays, TABLE), w[7], w[8], w[9], half, max_range,
+                     max_bytes, self.max_damage)
+
+    def refresh(self) -> None:
+        """Call after the World or the suite replaced an array (e.g. World.reset)."""
+        self._world_args = None
+        self._set_args()
+
+    def message(self, car: int) -> memoryview:
+        """Car `car`'s state message (with its NUL) as the last run left it."""
+        return self._messages[car][:self.out_len[car]]
+
+    def run(self, first: int, stop: int, stepping: bool, nsub: int, countdown: int) -> int:
+        """Stages first..stop-1 (DECODE, STEP, SENSE, ENCODE); returns stop, or for stop = DONE
+        DONE | EVENT when the bookkeeping has work (always after a stage done in Python).
+        stepping: advance the World (False in the countdown); countdown: the ticks still to
+        wait before the start, shown in the state being built (curLapTime < 0, gear 0, no focus)."""
+        plain = countdown == 0 and not self.suite.noisy
+        status = first
+        if self.compiled:           # the usual tick: one call, nothing left
+            status = server_tick(first, stop, stepping, plain, nsub, *self.args)
+            if status >= stop:
+                return status
+        python = False
+        while status < stop:
+            self._python_stage(status, stepping, nsub, countdown)
+            python = True
+            status += 1
+            if self.compiled and status < stop:
+                status = server_tick(status, stop, stepping, plain, nsub, *self.args)
+        if python and stop == DONE:
+            return DONE | EVENT
+        return status
+
+    def _python_stage(self, stage: int, stepping: bool, nsub: int, countdown: int) -> None:
+        """The Python path of one stage (the compiled call did the stages before it)."""
+        n = self.u.shape[0]
+        if stage == DECODE:
+            for i in range(n):
+                if self.inlen[i] < 0:
+                    self.meta[i] = 0
+                elif not self.compiled or self.meta[i] == -1:
+                    ctl = P.decode_controls(self.inbox[i, :self.inlen[i]].tobytes())
+                    if not ctl.well_formed:
+                        self.bad_datagrams += 1
+                    self.u[i] = (ctl.steer, ctl.accel, ctl.brake, ctl.gear, ctl.clutch)
+                    self.suite.request_focus([i], [FOCUS_NONE if ctl.focus is None else ctl.focus])
+                    self.meta[i] = ctl.meta
+        elif stage == STEP and stepping:
+            if self.compiled and self.steps[0] >= 0:
+                self.world.finish_tick(self.u, nsub, int(self.steps[0]))
+            else:
+                self.world.step(self.u, nsub)
+            self._set_args()            # the World's contact arrays may have been replaced
+        elif stage == SENSE:
+            if self.compiled:
+                self.suite.finish_frame(self.flat, self.cars, self.due)
+            else:
+                self.flat[:] = self.suite.frame().flat
+            if countdown > 0:
+                self.flat[:, O_CURLAP] = -TICK_S * countdown
+                self.flat[:, O_GEAR] = 0.0
+                self.flat[:, O_FOCUS:O_FOCUS + 5] = -1.0
+        elif stage == ENCODE:
+            for i in range(n):
+                if not self.compiled or self.out_len[i] < 0:
+                    msg = encode_exact(self.flat[i:i + 1])[0]
+                    self.out[i, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
+                    self.out_len[i] = len(msg)
+
+
+def encode_exact(rows: np.ndarray) -> list[bytes]:
+    """Every car's state message from its (79,) wire-order sensor row, whatever the values: only
+    pathological ones exceed 999 bytes, and then the noisy arrays are rounded and retried."""
+    try:
+        return P.encode_sensor_rows(rows)
+    except P.ProtocolError:
+        rows = rows.copy()
+        for name in ("track", "opponents", "focus"):
+            o, w = SENSOR_OFFSETS[name]
+            rows[:, o:o + w] = np.round(rows[:, o:o + w], 2)
+        return P.encode_sensor_rows(rows)
