@@ -35,6 +35,7 @@ from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
 from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, _broad_phase, whole_tick
+from madsim.physics.world_tick import rank_rows
 from madsim.physics.sensors import (
     N_VALUES,
     O_FOCUS,
@@ -154,15 +155,7 @@ def _race_positions(st, run, off, ncar, race_pos):
     for e in range(off.shape[0]):
         if not run[e] or ncar[e] < 2:
             continue
-        a, b = off[e], off[e] + ncar[e]
-        for i in range(a, b):
-            li, di = st[i, L.S_LAPS], st[i, L.S_DIST]
-            rank = 1
-            for j in range(a, b):
-                lj, dj = st[j, L.S_LAPS], st[j, L.S_DIST]
-                if lj > li or (lj == li and (dj > di or (dj == di and j < i))):
-                    rank += 1
-            race_pos[i] = rank
+        rank_rows(st, off[e], off[e] + ncar[e], race_pos)
 
 
 @numba.njit(cache=True, inline="always")
@@ -426,7 +419,7 @@ class WorldBatch:
         self.sense(mask)
 
     def _resolve(self, slot: int) -> None:
-        """World._step_with_contact's resolve for one slot."""
+        """World.finish_tick's contact resolve for one slot."""
         solver = self._solver[slot] or self._attach(slot)
         rows = self.rows(slot)
         st = self.state

@@ -21,11 +21,16 @@ NONFINITE = -1
 def race_positions(st, race_pos):
     """race_pos[i] = 1 + the cars ahead of car i: more laps, or as many and a longer distance
     raced, or both equal and a lower row (numpy.lexsort of (row, -dist, -laps) for finite values)."""
-    n = st.shape[0]
-    for i in range(n):
+    rank_rows(st, 0, st.shape[0], race_pos)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def rank_rows(st, a, b, race_pos):
+    """`race_positions` for the cars in rows a..b-1 of st alone (one race of a batch)."""
+    for i in range(a, b):
         li, di = st[i, S_LAPS], st[i, S_DIST]
         rank = 1
-        for j in range(n):
+        for j in range(a, b):
             lj, dj = st[j, S_LAPS], st[j, S_DIST]
             if lj > li or (lj == li and (dj > di or (dj == di and j < i))):
                 rank += 1
