@@ -53,7 +53,7 @@ _JIT = {"cache": True, "error_model": "numpy"}
 NO_REFCOUNT = {"_nrt": False}
 """For kernels that allocate nothing: without numba's runtime (NRT) no array reference counts
 are kept. numba keeps them with atomic increments and decrements at every array alias, call
-and inlined body; in the sub-step loop they cost ~15 % of `advance_car` (perf: `lock inc` in
+and inlined body; in the sub-step loop they cost ~20 % of `advance_car` (perf: `lock inc` in
 NRT_incref / NRT_decref). Arrays passed in stay owned by the caller; the floats are unchanged."""
 
 
