@@ -13,7 +13,7 @@ import math
 import numba
 import numpy as np
 
-from madsim.physics.kernel import YAW_RATE_MAX, advance_car
+from madsim.physics.kernel import NO_REFCOUNT, YAW_RATE_MAX, advance_car
 from madsim.physics.layout import S_PIECE, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
 from madsim.tracks.kernels import GEO_A0, GEO_KIND, GEO_LEN, GEO_R, GEO_S0, locate_from
 
@@ -252,7 +252,7 @@ def _broad_phase(x, y, yaw, piece, geo, bar, cars, prm, wall_cache, vref, pairs,
 WHOLE_EPS_M = 1e-6          # rounding allowance of `tick_clear`'s bounds, m (and rad)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, **NO_REFCOUNT)
 def tick_clear(x, y, yaw, cars, prm, wall_cache, vref, pairs, meta, path, turn):
     """True if `_broad_phase` (same arguments) can flag no car and change no cache while each
     car i, from the pose (x, y, yaw)[i], moves along a path of at most path[i] m and turns by at
@@ -706,6 +706,16 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
         m = 0
 
 
+@numba.njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def whole_tick_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp, snap,
+                    path, turn):
+    """`whole_tick` in a function of its own (serial), compiled without array reference counts
+    (`kernel.NO_REFCOUNT`: it allocates nothing; inlined into a caller that keeps them, its
+    array aliases and calls cost atomic increments): for serial callers."""
+    return whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp,
+                      snap, path, turn)
+
+
 @numba.njit(cache=True, error_model="numpy")
 def advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
                        x, y, yaw, piece, bp, near, snap, path, turn):
@@ -717,8 +727,8 @@ def advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt,
     k = k0
     n = np.int64(st.shape[0])
     while k < nsub:
-        k += whole_tick(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt,
-                        fuel_on, bp, snap, path, turn)
+        k += whole_tick_rows(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k,
+                             dt, fuel_on, bp, snap, path, turn)
         if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
             return k
     return nsub

@@ -34,7 +34,7 @@ from numba import typed
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
-from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, _broad_phase, whole_tick
+from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, _broad_phase, whole_tick_rows
 from madsim.physics.world_tick import rank_rows
 from madsim.physics.sensors import (
     N_VALUES,
@@ -83,8 +83,8 @@ def _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, 
     bp = bps[np.int64(e)]
     found = 0
     while k < nsub:
-        k += whole_tick(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp, snap,
-                        path, turn)
+        k += whole_tick_rows(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp,
+                             snap, path, turn)
         for i in range(a, b):
             piece[i] = int(st[i, L.S_PIECE])
         if b - a == 1 and _clear_of_walls(st[a, L.S_X], st[a, L.S_Y], st[a, L.S_YAW], piece[a],
