@@ -14,6 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numba.core import types
+from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 
 DTYPES = {"f8": np.float64, "i8": np.int64, "u1": np.uint8, "i1": np.int8, "b1": np.bool_}
@@ -93,3 +94,16 @@ def i1_vector(table, k):
 @numba.njit(cache=True, inline="always")
 def b1_vector(table, k):
     return numba.carray(b1_ptr(table[k, 0]), (table[k, 1],))
+
+
+@intrinsic
+def readonly(typingctx, arr):
+    """The same view typed read-only: the World hands the track's tables to the kernels as
+    read-only arrays, and a view of another type would compile every kernel a second time."""
+    if not isinstance(arr, types.Array):
+        return None
+    sig = arr.copy(readonly=True)(arr)
+
+    def codegen(context, builder, signature, args):
+        return impl_ret_borrowed(context, builder, signature.return_type, args[0])
+    return sig, codegen

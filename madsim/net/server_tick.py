@@ -19,7 +19,7 @@ import numpy as np
 from madsim.facts import TICK_S
 from madsim.net import protocol as P
 from madsim.net.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i1_vector,
-                                    i8_matrix, i8_vector, u1_matrix, u1_vector)
+                                    i8_matrix, i8_vector, readonly, u1_matrix, u1_vector)
 from madsim.net.codec_kernels import decode_stock, encode_rows
 from madsim.physics.layout import S_DAMAGE, S_LAPS, S_TIME
 from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR, O_TPOS,
@@ -123,7 +123,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
     if first <= STEP < stop and stepping:
         near = i8_vector(t, NEAR)
         steps = i8_vector(t, STEPS)
-        bp = (f8_matrix(t, BP_GEO), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS), f8_vector(t, BP_PRM),
+        bp = (readonly(f8_matrix(t, BP_GEO)), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS), f8_vector(t, BP_PRM),
               f8_matrix(t, BP_WALL), f8_matrix(t, BP_VREF), i8_matrix(t, BP_PAIRS), i8_vector(t, BP_META),
               i1_vector(t, BP_FLAGS), f8_vector(t, BP_SLACK))
         steps[0] = step_world(u, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
@@ -135,7 +135,8 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
             return STEP
     if first <= SENSE < stop:
         flat, due = f8_matrix(t, FLAT), b1_vector(t, DUE)
-        sensor_kernel(cars, st, f8_matrix(t, GEO), f8_matrix(t, RUNS), i8_vector(t, PIECE_RUN), half_width,
+        sensor_kernel(cars, st, readonly(f8_matrix(t, GEO)), readonly(f8_matrix(t, RUNS)),
+                      readonly(i8_vector(t, PIECE_RUN)), half_width,
                       f8_matrix(t, ANGLES), race_pos, f8_vector(t, ORIGIN), b1_vector(t, ACTIVE), max_range,
                       flat)
         count = 0
@@ -152,7 +153,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
             return SENSE
     if first <= ENCODE < stop:
         out_len = i8_vector(t, OUT_LEN)
-        encode_rows(f8_matrix(t, FLAT), b1_vector(t, IS_INT), u1_vector(t, LIT), i8_vector(t, LIT_END),
+        encode_rows(f8_matrix(t, FLAT), b1_vector(t, IS_INT), readonly(u1_vector(t, LIT)), i8_vector(t, LIT_END),
                     max_bytes, u1_matrix(t, OUT), out_len)
         for i in range(out_len.shape[0]):
             if out_len[i] < 0:
