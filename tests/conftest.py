@@ -4,10 +4,17 @@ Tests that start an SCR server in another process (`madsim serve`, `ScrServer` t
 with a bounded wait) assume the race kernels load from numba's disk cache in about a second.
 On a fresh install (CI's clean clone) the first server compiles them instead (~25-45 s on a
 2-core machine), which would eat that test's wait. So when the session holds such a test,
-the kernels are compiled here once, in this process, into the same disk cache the servers read.
+the kernels are compiled here once, into the disk cache the servers read: in this process (for
+servers in threads) and, at the same time, in a child process started outside the repository
+(for servers in subprocesses: with a non-editable install, as in CI, they import the installed
+copy of madsim, whose cache entries are not this process's).
 """
 
 from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
 
 import pytest
 
@@ -20,16 +27,23 @@ SERVER_TEST_FILES = ("test_traffic_udp.py", "test_bad_input.py", "test_interrupt
 def _race_kernels_compiled(request):
     if not any(item.path.name in SERVER_TEST_FILES for item in request.session.items):
         return
-    import numpy as np
+    child = subprocess.Popen([sys.executable, "-c", WARM_UP], cwd=tempfile.gettempdir())
+    try:
+        exec(WARM_UP, {})
+    finally:
+        assert child.wait(timeout=600) == 0, "compiling the race kernels in a child process failed"
 
-    from madsim.cars import load_car
-    from madsim.net import protocol
-    from madsim.net.server import warm_up
-    from madsim.physics import SensorSuite, World
-    from madsim.tracks import load_track
 
-    world = World(load_track("madsim-road"), [load_car("madsim-sedan"), load_car("madsim-sedan")],
-                  rng=np.random.default_rng(0))
-    warm_up(world)
-    rows = SensorSuite(world, noisy=False, rng=np.random.default_rng(0)).frame().flat
-    protocol.decode_sensors(protocol.encode_sensor_rows(rows)[0])      # the clients' side
+WARM_UP = """
+import numpy as np
+from madsim.cars import load_car
+from madsim.net import protocol
+from madsim.net.server import warm_up
+from madsim.physics import SensorSuite, World
+from madsim.tracks import load_track
+
+world = World(load_track("madsim-road"), [load_car("madsim-sedan")] * 2, rng=np.random.default_rng(0))
+warm_up(world)
+rows = SensorSuite(world, noisy=False, rng=np.random.default_rng(0)).frame().flat
+protocol.decode_sensors(protocol.encode_sensor_rows(rows)[0])      # the clients' side
+"""
