@@ -94,8 +94,8 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
     event = False
     if first <= DECODE < stop:
         inbox, inlen, meta = u1_matrix(t, INBOX), i8_vector(t, INLEN), i8_vector(t, META)
-        cpp = (u1_vector(t, CPP_TEXT), i8_vector(t, CPP_ENDS), i8_vector(t, CPP_SLOTS))
-        snakeoil = (u1_vector(t, SO_TEXT), i8_vector(t, SO_ENDS), i8_vector(t, SO_SLOTS))
+        cpp = (readonly(u1_vector(t, CPP_TEXT)), i8_vector(t, CPP_ENDS), i8_vector(t, CPP_SLOTS))
+        snakeoil = (readonly(u1_vector(t, SO_TEXT)), i8_vector(t, SO_ENDS), i8_vector(t, SO_SLOTS))
         dec = np.empty(8)
         asked = np.empty(n, dtype=np.int64)
         focus = np.empty(n)
@@ -105,7 +105,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
             if inlen[i] < 0:
                 meta[i] = 0
                 continue
-            if not decode_stock(inbox[i], inlen[i], cpp, snakeoil, dec):
+            if not decode_stock(readonly(inbox[i]), inlen[i], cpp, snakeoil, dec):
                 meta[i] = -1
                 whole = False
                 continue
