@@ -189,7 +189,7 @@ def add_drive_parser(sub) -> None:
     dv.add_argument("--driver", choices=["simple"], default="simple",
                     help="simple: steer to the track axis, slow for bends, shift by rpm")
     dv.add_argument("--max-steps", type=int, default=None)
-    dv.add_argument("--wait", type=float, default=30.0,
+    dv.add_argument("--wait", type=float, default=60.0,
                     help="seconds to look for the server (and to wait for it mid-race) before giving up")
     dv.set_defaults(func=_handler("madsim.cli:cmd_drive"))
 
