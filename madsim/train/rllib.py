@@ -104,12 +104,13 @@ def ppo_config(config, *, policies: str = "per_agent", num_env_runners: int = 2,
         if any((probe.observation_spaces[a], probe.action_spaces[a]) != first for a in names):
             raise ValueError("a shared policy needs every agent to have the same observation and "
                              "action spaces; use policies='per_agent'")
-        modules = {"shared"}
+        modules = ["shared"]
 
         def mapping(agent_id, episode=None, **kwargs):
             return "shared"
     else:
-        modules = set(names)
+        modules = list(names)          # in the scenario's order: a set's order changes with the
+                                       # hash seed, and so would which module gets which initial weights
 
         def mapping(agent_id, episode=None, **kwargs):
             return agent_id

@@ -107,3 +107,23 @@ def test_cli_lists_runs_and_reports(tmp_path, capsys):
     assert "| Training from scratch |" in capsys.readouterr().out
     assert (tmp_path / "s" / "table.md").is_file()
     assert main(["experiment", "report", str(tmp_path)]) == 2      # not a result folder
+
+
+@pytest.mark.timeout(300)
+def test_exp6_same_seed_and_hash_seed_same_table(tmp_path):
+    """exp6's RLlib training orders some of its work by Python's string hashes: with one seed
+    and one PYTHONHASHSEED (as docs/paper-results.md says to run it), two runs give one table."""
+    pytest.importorskip("ray", reason="needs the 'rllib' extra")
+    import os
+    import subprocess
+    import sys
+
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        subprocess.run([sys.executable, "-m", "madsim", "experiment", "run", "exp6", "--budget", "smoke",
+                        "--seed", "0", "--out", str(out)], check=True, capture_output=True, timeout=280,
+                       env={**os.environ, "PYTHONHASHSEED": "0"}, cwd=tmp_path)
+        outs.append(out)
+    assert (outs[0] / "evaluation.csv").read_bytes() == (outs[1] / "evaluation.csv").read_bytes()
+    assert _table_lines(outs[0]) == _table_lines(outs[1])
