@@ -24,6 +24,7 @@ import csv
 import dataclasses
 import json
 import platform
+import os
 import sys
 import time
 from pathlib import Path
@@ -202,8 +203,14 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
     out = Path(out)
     (out / "eval_configs").mkdir(parents=True, exist_ok=True)
     t0 = time.time()
+    hash_seed = os.environ.get("PYTHONHASHSEED")
+    fixed = exp.trainer == "rllib" and hash_seed not in (None, "random")
+    prefix = f"PYTHONHASHSEED={hash_seed} " if fixed else ""
+    if exp.trainer == "rllib" and not prefix:
+        log(f"{exp.name}: RLlib's training depends on Python's string hash seed; to reproduce "
+            f"this run to the digit, run it with PYTHONHASHSEED=0")
     record = {"experiment": exp.name, "title": exp.title, "budget": dataclasses.asdict(b),
-              "seed": seed, "command": f"madsim experiment run {name} --budget {budget} "
+              "seed": seed, "command": f"{prefix}madsim experiment run {name} --budget {budget} "
                                        f"--seed {seed} --out {out}",
               "address": address, "notes": list(exp.notes), "subruns": {},
               "evaluation": {"episodes": b.eval_episodes, "seeds": "1000000 + k",

@@ -127,3 +127,5 @@ def test_exp6_same_seed_and_hash_seed_same_table(tmp_path):
         outs.append(out)
     assert (outs[0] / "evaluation.csv").read_bytes() == (outs[1] / "evaluation.csv").read_bytes()
     assert _table_lines(outs[0]) == _table_lines(outs[1])
+    record = json.loads((outs[0] / "experiment.json").read_text())
+    assert record["command"].startswith("PYTHONHASHSEED=0 madsim experiment run exp6 ")
