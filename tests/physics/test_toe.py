@@ -60,3 +60,14 @@ def test_toe_in_pair_runs_straight_with_the_drag_its_slip_angle_gives(straight, 
     i_wheel = car.wheel_inertia + np.repeat(car.axle_inertia, 2) / 2.0
     m_eff = car.mass_total + 1.5 * float(np.sum(i_wheel / car.wheel_radius ** 2))
     assert decel_toe - decel == pytest.approx(drag / m_eff, rel=0.01)   # measured -0.4 %
+
+
+def test_car_file_toe_reaches_the_kernel_per_wheel(need_torcs):
+    # car1-stock1 sets 0.3 deg of rear toe-in (right +0.3, left -0.3; torcs-data), no front toe
+    from madsim.cars import load_car
+    from madsim.physics.tables import car_table
+
+    car = load_car("car1-stock1")
+    np.testing.assert_allclose(np.degrees(car.toe), [0.0, 0.0, 0.3, -0.3], atol=1e-6)
+    cp, _, _ = car_table([car], ["semi-pro"])
+    np.testing.assert_array_equal(cp[0, L.C_TOE:L.C_TOE + 4], car.toe)
