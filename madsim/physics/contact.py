@@ -86,8 +86,10 @@ from madsim.physics.contact_kernels import (
     C_MASS,
     C_RAD,
     C_WIN,
+    B_PIT,
     LEVEL_STRETCH_MAX,
     MIN_RADIUS_M,
+    MAT_PIT_WALL,
     SKILL_SEMI_PRO,
     WINDOW_SLACK_M,
     _broad_phase,
@@ -179,7 +181,9 @@ class ContactSolver:
         self._cars = cars
         self._prm = np.array([track.length, WINDOW_SLACK_M / stretch if cache_ok else 0.0,
                               rad.max(), car_restitution, damage_factor,
-                              min(stretch, LEVEL_STRETCH_MAX), chord ** 2])
+                              min(stretch, LEVEL_STRETCH_MAX), chord ** 2,
+                              float(np.isfinite(self._bar[:, B_PIT]).any()
+                                    or np.isfinite(self._bar[:, B_PIT + 2]).any())])
 
         # --- broad-phase caches and outputs -------------------------------------------------
         self._wall_cache = np.zeros((n, 4))          # x, y, yaw at the last full check, budget
@@ -386,13 +390,15 @@ class ContactSolver:
 
 
 def _barrier_table(track) -> np.ndarray:
-    """(P, 5) per piece: barrier offsets from the centre line at its start and end (left start,
-    left end, right start, right end; m, road half width + border + side) and the radius of the
-    barrier line on the inside of the bend (m, >= MIN_RADIUS_M; inf on straights)."""
+    """(P, 9) per piece: barrier offsets from the centre line at its start and end (left start,
+    left end, right start, right end; m, road half width + border + side), the radius of the
+    barrier line on the inside of the bend (m, >= MIN_RADIUS_M; inf on straights), then from
+    column B_PIT the pit wall's inner and outer offsets on the left and on the right (m; inf and
+    -inf where that side has none)."""
     p = track.pieces
     geo = track.geo
     half = track.width / 2.0
-    out = np.empty((p.shape[0], 5))
+    out = np.empty((p.shape[0], 9))
     out[:, 0] = half + p[:, COL["border_w_l"]] + p[:, COL["side_w0_l"]]
     out[:, 1] = half + p[:, COL["border_w_l"]] + p[:, COL["side_w1_l"]]
     out[:, 2] = half + p[:, COL["border_w_r"]] + p[:, COL["side_w0_r"]]
@@ -400,6 +406,10 @@ def _barrier_table(track) -> np.ndarray:
     kind = geo[:, GEO_KIND]
     inner = np.where(kind == 1, out[:, :2].max(axis=1), out[:, 2:4].max(axis=1))
     out[:, 4] = np.where(kind == 0, np.inf, np.maximum(geo[:, GEO_R] - inner, MIN_RADIUS_M))
+    walls = track.pit_wall_pieces()
+    for k, sfx in enumerate(("l", "r")):
+        out[:, B_PIT + 2 * k] = np.where(walls[:, k], half, np.inf)
+        out[:, B_PIT + 2 * k + 1] = np.where(walls[:, k], half + p[:, COL[f"border_w_{sfx}"]], -np.inf)
     return out
 
 
@@ -421,7 +431,9 @@ def _track_bounds(track, bar: np.ndarray) -> tuple[float, float]:
 
 def _wall_space(track):
     """pymunk space with the barrier polylines as static segments, one static body per barrier
-    material. Returns (space, material bodies, surface index of each material body)."""
+    material, and the pit walls (`Track.pit_wall_quads`) as static convex polygons on a body of
+    their own (material MAT_PIT_WALL, last). Returns (space, material bodies, surface index of
+    each material body or MAT_PIT_WALL)."""
     space = pymunk.Space()
     space.collision_bias = 1.0          # no positional bias: pymunk's bodies never move
     space.collision_persistence = 1     # arbiters left after a step are the current contacts
@@ -448,6 +460,12 @@ def _wall_space(track):
             shapes.extend(pymunk.Segment(body, a, b, 0.0)        # elasticity, friction: 0 (unused)
                           for a, b in zip(map(tuple, pts[sel].tolist()), map(tuple, ends[sel].tolist())))
     mat_ids = sorted(bodies)
+    quads = track.pit_wall_quads()[0]
+    if quads.shape[0]:                  # the pit walls: one more static body, the last
+        mat_ids.append(MAT_PIT_WALL)
+        bodies[MAT_PIT_WALL] = pymunk.Body(body_type=pymunk.Body.STATIC)
+        shapes.extend(pymunk.Poly(bodies[MAT_PIT_WALL], list(map(tuple, q.tolist())), radius=0.0)
+                      for q in quads)
     space.add(*[bodies[m] for m in mat_ids], *shapes)
     return space, [bodies[m] for m in mat_ids], mat_ids
 
@@ -489,12 +507,17 @@ def _give_back(pool: _SpacePool, lease: list, bodies, shapes, member) -> None:
 
 
 def _material_table(track, mat_ids, wall_friction, rebound) -> np.ndarray:
-    """(M, 3) friction, rebound, damage factor of each wall material body."""
-    out = np.zeros((max(1, len(mat_ids)), 3))
+    """(M, 4) friction, rebound, damage factor and kind (0 barrier, 1 pit wall) of each wall
+    material body. A pit wall's row is (0, 1, 1, 1): TORCS's pit-wall rule ignores the surface
+    (an elastic impulse, `contact_kernels._pit_wall_response`)."""
+    out = np.zeros((max(1, len(mat_ids)), 4))
     for k, m in enumerate(mat_ids):
+        if m == MAT_PIT_WALL:
+            out[k] = (0.0, 1.0, 1.0, 1.0)
+            continue
         srf = track.surfaces[m]
         out[k] = (srf.friction if wall_friction is None else wall_friction,
-                  srf.rebound if rebound is None else rebound, srf.dammage)
+                  srf.rebound if rebound is None else rebound, srf.dammage, 0.0)
     return out
 
 
