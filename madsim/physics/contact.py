@@ -5,9 +5,10 @@ velocities, which it changes in place (positions separated, velocities changed b
 and returns a `ContactReport` (per car: wall contact, car contact, damage added; car pairs).
 
 1. Broad phase (compiled, no pymunk). Walls: per car a conservative clearance to the barrier
-   lines (lateral extent of the box at the car's track position against the narrowest barrier
-   offset within reach, less the bulge of a curved barrier over the box and the polylines'
-   chord error), reused while the car cannot have moved enough to use it up. Cars: exact box
+   lines and the pit walls (lateral extent of the box at the car's track position against the
+   narrowest barrier offset within reach and the lateral gap to any pit wall's strip within
+   reach, less the bulge of a curved barrier over the box and the polylines' chord error),
+   reused while the car cannot have moved enough to use it up. Cars: exact box
    overlap (separating axes) on a neighbour list rebuilt from a hashed grid when some car has
    moved `REBUILD_M`. Contacts act after penetration, so "near" means overlapping (cars) or
    within the bulge allowance + `WALL_REACH_M` (walls). Nothing near: pymunk is not touched.
@@ -15,7 +16,9 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
    path length and turn): when it proves every call on the way would find nothing and change
    no cache, World and WorldBatch advance the cars that stretch in one kernel call.
 2. Narrow phase (pymunk). Cars are box bodies of their size, barriers static segments built once
-   per track from the track's barrier polylines (one static body per barrier material): a solver
+   per track from the track's barrier polylines (one static body per barrier material), pit
+   walls (borders of style `wall` with a side beyond, track spec 6) static convex quads
+   (`Track.pit_wall_quads`) on one more static body: a solver
    holds a barrier space only between its first consultation and `reset()`, which empties it and
    returns it to the track's pool, so a later solver on the same Track object (a reset onto a
    track used before) takes it instead of building one (40-300 ms). A space coming back holds
@@ -34,6 +37,10 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
      max(1, |v|), c = v.n / V) and `v -= n vn rebound`. So the into-wall speed is multiplied
      by (1 - k_friction - rebound) per contact step (0.5 for TORCS's barrier: friction 0,
      rebound 0.5; TORCS's "friction" damps the normal speed) and the tangential speed is kept.
+   - pit walls, the same way per direction and deepest point, but TORCS's pit-wall rule: when
+     vn < 0, the elastic impulse on an immovable wall j = -(1 + e) vn / (1/m + (p x n)^2 / I),
+     e = 1, on v in full and on r by half (|r| <= 3 rad/s), damage 0.1 x 2e-5 j^2 (x1.5 within
+     +-60 deg of the nose) x skill.
    - car-car, at the manifold's mid point along pymunk's normal, when the points approach:
      `j = -(1 + e) v_rel.n / (1/m1 + 1/m2 + (r1 x n)^2/I1 + (r2 x n)^2/I2)` on both velocities
      and yaw rates (capped at 3 rad/s), e = 1 as in TORCS (`car_restitution` lowers it), damage
@@ -57,8 +64,9 @@ wall direction responds once per step (TORCS once per corner, with stale corner 
 cars are separated fully, not by at most 5 cm; walls are pymunk segments, so the side of a box
 hits a convex wall corner (TORCS tests corners only), with TORCS's exact corner test as the
 safety net. Boxes are centred on (x, y) (TORCS's CG offset in the body is ignored). pymunk is
-2-D: contacts between cars far apart along the track, and wall contacts whose car point is well
-inside the car's own barrier lines, are ignored (bridges). Cars with a non-finite pose are
+2-D: contacts between cars far apart along the track, and barrier contacts whose car point is
+well inside the car's own barrier lines, are ignored (bridges); pit walls are not told apart by
+level, and their height is not used. Cars with a non-finite pose are
 ignored.
 """
 
