@@ -204,3 +204,28 @@ def test_torcs_tracks_pit_walls_per_side(name, left, right):
     against the XML: each pit lane's `wall` border with a side beyond)."""
     walls = load_track(name).pit_wall_pieces()
     assert (int(walls[:, 0].sum()), int(walls[:, 1].sum())) == (left, right)
+
+
+def test_world_batch_hits_the_pit_wall_exactly_as_the_world(kinds_track):
+    """A car steering left into the pit wall at 15 m/s: WorldBatch's slot (its lone-car fast
+    path and whole ticks) equals a World bit for bit every tick, and the car does hit the wall
+    (wall contact, damage) and its centre never passes the road face."""
+    from madsim.physics.world_batch import WorldBatch
+
+    car = load_car("madsim-sedan")
+    where = np.array([[s_mid("pit wall") - 60.0, 1.0, 15.0]])
+    world = World(kinds_track, [car], np.random.default_rng(0))
+    world.reset(where)
+    batch = WorldBatch(1, 1)
+    batch.start(0, ("pitwalls", (car.name,)), kinds_track, [car], where)
+    u = np.array([[0.6, 0.3, 0.0, 1.0, 0.0]])
+    mask = np.ones(1, dtype=bool)
+    hit = False
+    for _ in range(150):
+        batch.controls[batch.rows(0)] = u
+        world.step(u)
+        batch.step(mask)
+        assert np.array_equal(batch.state[batch.rows(0)], world.state)
+        hit |= bool(world.contact_wall[0])
+        assert world.n[0] < WIDTH / 2
+    assert hit and world.damage[0] > 0.0
