@@ -139,9 +139,7 @@ def test_corner_hit_with_spin_follows_the_torcs_pit_wall_rule(kinds_track):
     solver = ContactSolver(kinds_track, [HL], [HW], [MASS], [IZZ])
     rep = solver.resolve(*st, DT)
     assert rep.wall[0]
-    assert st[3][0] == pytest.approx(v_exp[0], abs=1e-7)
-    assert st[4][0] == pytest.approx(v_exp[1], abs=1e-7)
-    assert st[5][0] == pytest.approx(w_exp, abs=1e-7)
+    np.testing.assert_allclose([st[3][0], st[4][0], st[5][0]], [*v_exp, w_exp], rtol=0, atol=1e-7)
     assert rep.damage[0] == pytest.approx(dmg_exp, rel=1e-7)
 
 
