@@ -17,8 +17,9 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
    no cache, World and WorldBatch advance the cars that stretch in one kernel call.
 2. Narrow phase (pymunk). Cars are box bodies of their size, barriers static segments built once
    per track from the track's barrier polylines (one static body per barrier material), pit
-   walls (borders of style `wall` with a side beyond, track spec 6) static convex quads
-   (`Track.pit_wall_quads`) on one more static body: a solver
+   walls (borders of style `wall` with a side beyond, track spec 6) the closed outlines of
+   `Track.pit_wall_quads` on one more static body (faces and end caps as TORCS builds them,
+   segment neighbours set so that the joints are not hit): a solver
    holds a barrier space only between its first consultation and `reset()`, which empties it and
    returns it to the track's pool, so a later solver on the same Track object (a reset onto a
    track used before) takes it instead of building one (40-300 ms). A space coming back holds
@@ -122,6 +123,8 @@ _ARB_FIELDS = (pmb.ArbiterFields.BODY_A_ID | pmb.ArbiterFields.BODY_B_ID | pmb.A
                | pmb.ArbiterFields.DISTANCE_2)
 _ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2 x (pa, pb, dist))
 _F64, _I64 = np.dtype(np.float64), np.dtype(np.int64)
+
+JOIN_M = 0.01    # pit-wall quads whose edges meet this closely are one wall (float32 piece starts)
 
 # Track -> its free barrier spaces (a cache: which space a solver takes never changes a result)
 _POOLS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -439,8 +442,8 @@ def _track_bounds(track, bar: np.ndarray) -> tuple[float, float]:
 
 def _wall_space(track):
     """pymunk space with the barrier polylines as static segments, one static body per barrier
-    material, and the pit walls (`Track.pit_wall_quads`) as static convex polygons on a body of
-    their own (material MAT_PIT_WALL, last). Returns (space, material bodies, surface index of
+    material, and the pit walls (`Track.pit_wall_quads`) as the static segments of their
+    outlines, neighbours set, on a body of their own (material MAT_PIT_WALL, last). Returns (space, material bodies, surface index of
     each material body or MAT_PIT_WALL)."""
     space = pymunk.Space()
     space.collision_bias = 1.0          # no positional bias: pymunk's bodies never move
@@ -468,14 +471,38 @@ def _wall_space(track):
             shapes.extend(pymunk.Segment(body, a, b, 0.0)        # elasticity, friction: 0 (unused)
                           for a, b in zip(map(tuple, pts[sel].tolist()), map(tuple, ends[sel].tolist())))
     mat_ids = sorted(bodies)
-    quads = track.pit_wall_quads()[0]
-    if quads.shape[0]:                  # the pit walls: one more static body, the last
+    chains = _pit_wall_chains(track.pit_wall_quads()[0])
+    if chains:                          # the pit walls: one more static body, the last
         mat_ids.append(MAT_PIT_WALL)
-        bodies[MAT_PIT_WALL] = pymunk.Body(body_type=pymunk.Body.STATIC)
-        shapes.extend(pymunk.Poly(bodies[MAT_PIT_WALL], list(map(tuple, q.tolist())), radius=0.0)
-                      for q in quads)
+        body = bodies[MAT_PIT_WALL] = pymunk.Body(body_type=pymunk.Body.STATIC)
+        for pts in chains:              # closed outline; neighbours set: no ghost hits at joints
+            segs = [pymunk.Segment(body, a, b, 0.0) for a, b in zip(pts, pts[1:] + pts[:1])]
+            for k, seg in enumerate(segs):
+                seg.set_neighbors(segs[k - 1].a, segs[(k + 1) % len(segs)].b)
+            shapes.extend(segs)
     space.add(*[bodies[m] for m in mat_ids], *shapes)
     return space, [bodies[m] for m in mat_ids], mat_ids
+
+
+def _pit_wall_chains(quads: np.ndarray) -> list[list[tuple]]:
+    """The outlines of the pit walls: consecutive quads (`Track.pit_wall_quads`) that share an
+    edge (to JOIN_M; a wall across the start line included) make one wall, outlined as TORCS
+    builds it (inner face, end cap, outer face back, start cap). Returns one closed point list
+    per wall."""
+    w = quads.shape[0]
+    if w == 0:
+        return []
+    joined = np.abs(quads[:, :2] - np.roll(quads, 1, axis=0)[:, 3:1:-1]).max(axis=(1, 2)) < JOIN_M
+    first = int(np.argmin(joined)) if not joined.all() else 0      # a wall starts here
+    order = (first + np.arange(w)) % w
+    starts = [k for k in range(w) if k == 0 or not joined[order[k]]]
+    chains = []
+    for a, b in zip(starts, starts[1:] + [w]):
+        run = quads[order[a:b]]
+        inner = np.vstack([run[:, 0], run[-1:, 3]])
+        outer = np.vstack([run[:, 1], run[-1:, 2]])
+        chains.append(list(map(tuple, np.vstack([inner, outer[::-1]]).tolist())))
+    return chains
 
 
 class _SpacePool:

@@ -29,6 +29,8 @@ PIT_WALL_E = 1.0            # pit walls: restitution of the impulse (elastic)
 PIT_WALL_ROT_K = 0.5        # pit walls: share of the impulse's yaw-rate change that is applied
 PIT_WALL_DAMAGE_K = 2e-5    # pit walls: damage = CAR_DAMAGE_PER_NS x this x j^2 (x frontal, skill)
 MAT_PIT_WALL = -1           # "surface index" of the pit walls' material body
+PIT_CAP_COS = 0.7           # a pit-wall contact normal this close to the track direction is a cap's
+PIT_CAP_REACH_M = 0.5       # ... and is kept only this close to an end of the wall
 
 # --- solver tuning ----------------------------------------------------------------------------
 SLOP_M = 1e-3               # extra separation beyond the measured penetration
@@ -396,6 +398,24 @@ def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
 
 
 @numba.njit(cache=True)
+def _pit_cap_ok(geo, bar, hint, px, py, nx, ny):
+    """False for a pit-wall contact at (px, py) whose normal (nx, ny) runs along the track
+    (|n . t| > PIT_CAP_COS) with no end of that wall within PIT_CAP_REACH_M of the point: pymunk
+    hitting the seam between two segments of one face, not an end cap."""
+    p, q, n = locate_from(geo, hint, px, py)
+    a = _heading(geo, p, q)
+    if abs(nx * math.cos(a) + ny * math.sin(a)) <= PIT_CAP_COS:
+        return True
+    col = B_PIT if n >= 0.0 else B_PIT + 2
+    last = geo.shape[0] - 1
+    if not math.isfinite(bar[p, col]):
+        return True
+    if q < PIT_CAP_REACH_M and not math.isfinite(bar[p - 1 if p > 0 else last, col]):
+        return True
+    return q > geo[p, GEO_LEN] - PIT_CAP_REACH_M and not math.isfinite(bar[p + 1 if p < last else 0, col])
+
+
+@numba.njit(cache=True)
 def _pit_wall_response(i, nx, ny, px, py, x, y, yaw, vx, vy, w, cars, prm, damage):
     """TORCS pit-wall rule (car spec 4.12) for car i at point (px, py), wall normal (nx, ny)
     pointing away from the wall, if the point moves into the wall: the impulse of an elastic
@@ -495,6 +515,8 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
                 excess, sx, sy = _point_excess(geo, bar, piece[i], px, py)
                 if excess < -OTHER_LEVEL_M or sgn * nx * sx + sgn * ny * sy <= 0.0:
                     continue     # another level's wall, or seen from behind: the projection handles it
+            elif not _pit_cap_ok(geo, bar, piece[i], px, py, sgn * nx, sgn * ny):
+                continue         # a seam between two segments of one pit wall's face
             ri[nrec], rk[nrec], ro[nrec] = i, 0, m
             rf[nrec, 0], rf[nrec, 1], rf[nrec, 2], rf[nrec, 3], rf[nrec, 4] = sgn * nx, sgn * ny, px, py, dmax
         else:
