@@ -38,7 +38,9 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
      max(1, |v|), c = v.n / V) and `v -= n vn rebound`. So the into-wall speed is multiplied
      by (1 - k_friction - rebound) per contact step (0.5 for TORCS's barrier: friction 0,
      rebound 0.5; TORCS's "friction" damps the normal speed) and the tangential speed is kept.
-   - pit walls, the same way per direction and deepest point, but TORCS's pit-wall rule: when
+   - pit walls, the same way per direction and deepest point (a contact whose normal runs
+     along the track away from the wall's ends is a seam between two of its segments: dropped),
+     but TORCS's pit-wall rule: when
      vn < 0, the elastic impulse on an immovable wall j = -(1 + e) vn / (1/m + (p x n)^2 / I),
      e = 1, on v in full and on r by half (|r| <= 3 rad/s), damage 0.1 x 2e-5 j^2 (x1.5 within
      +-60 deg of the nose) x skill.
