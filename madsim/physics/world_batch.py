@@ -34,7 +34,16 @@ from numba import typed
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
-from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, _broad_phase, whole_tick_rows
+from madsim.physics.contact_kernels import (
+    C_GAIN,
+    C_RAD,
+    CAR_REACH_M,
+    P_MOVE_CAP,
+    REBUILD_M,
+    _broad_phase,
+    _wrap,
+    whole_tick_rows,
+)
 from madsim.physics.world_tick import rank_rows
 from madsim.physics.sensors import (
     N_VALUES,
@@ -58,64 +67,147 @@ _SOLVER_CONSTS = 4       # broad_phase_args: (geo, bar, cars, prm) never written
 # The batch loops are module-level kernels in numba's disk cache (`madsim.kernel_cache` renews
 # their entries when any kernel module changes): one per-slot body each, run by a serial and a
 # parallel (slots shared among threads) loop. With contact off the broad phase is never called.
+# The physics body keeps no array reference counts (`kernel.NO_REFCOUNT`): every per-track and
+# per-slot table is a row range of one flat array (no typed lists, whose items are counted),
+# sliced inside it; only the broad phase proper (it allocates) runs with counts, when a slot's
+# cheap check `_quiet` cannot prove it would find nothing.
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near, piece, bps,
-                  hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
-    """World.step for slot e: sub-steps from kpos[e] (the rest at once where provably nothing
-    is near) until the broad phase finds something near (near[e] != 0, kpos[e] = sub-steps
-    done) or all nsub are done (near[e] = 0)."""
+@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
+def _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo, trk,
+                  off, ncar, kpos, piece, hits, nsub, dt, fuel_on, with_contact, snap, path,
+                  turn, box, prm, wall_cache, vref, pairs, meta, flags, slack):
+    """World.step for slot e from sub-step kpos[e] (the rest at once where provably nothing is
+    near): returns 0 when all nsub are done with nothing near (kpos[e] = nsub), 1 when the
+    broad phase must run now (kpos[e] = sub-steps done)."""
     a, b = off[e], off[e] + ncar[e]
     t = trk[e]
-    pt, surf, tsc = pts[t], surfs[t], tscs[t]
+    pt, surf, tsc = pt_all[pt_off[t]:pt_off[t + 1]], surf_all[surf_off[t]:surf_off[t + 1]], tsc_all[t]
     k = kpos[e]
     if k == 0:
-        hits[a:b] = False
-        if b - a > 1:      # World.step: slipstream from the poses at the tick's start
-            kernel.slipstream(st, cp, a, b, tsc[L.T_LENGTH])
+        for i in range(a, b):
+            hits[i] = False
+        if 1 < b - a <= kernel.SLIP_ALL_PAIRS:   # World.step: from the poses at the tick's start
+            kernel.slipstream_few(st, cp, a, b)  # (more cars: `_advance_one`, it sorts)
     if not with_contact:
         for i in range(a, b):
             kernel.advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, nsub, dt, fuel_on)
         kpos[e] = nsub
-        near[e] = 0
-        return
-    bp = bps[np.int64(e)]
-    found = 0
+        return 0
+    cars, wc, vr, pr, mt = box[a:b], wall_cache[a:b], vref[a:b], pairs[e], meta[e]
     while k < nsub:
-        k += whole_tick_rows(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp,
-                             snap, path, turn)
+        k += whole_tick_rows(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, cars,
+                             prm[e], wc, vr, pr, mt, snap, path, turn)
         for i in range(a, b):
             piece[i] = int(st[i, L.S_PIECE])
-        if b - a == 1 and _clear_of_walls(st[a, L.S_X], st[a, L.S_Y], st[a, L.S_YAW], piece[a],
-                                          bp[0], bp[2], bp[3], bp[4], bp[8], bp[9]):
-            continue
-        found = _broad_phase(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
-                             bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], bp[8], bp[9])
-        if found != 0:
-            break
-    kpos[e] = k
-    near[e] = found
+        if not _quiet(st, a, b, piece, n_geo[t], cars, prm[e], wc, vr, pr, mt, flags[a:b],
+                      slack[a:b]):
+            kpos[e] = k
+            return 1
+    kpos[e] = nsub
+    return 0
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _advance(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece, bps,
-             hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
-    """`_advance_slot` for every slot where run[e], one after the other."""
+def _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_all, bar_off, box,
+                      prm, wall_cache, vref, pairs, pcap, meta, flags, slack):
+    """The contact broad phase of slot e's cars (on its rows of the flat tables and caches, as
+    `ContactSolver.broad_phase_args`); near[e] = its answer; True if not 0 (something near)."""
+    a, b = off[e], off[e] + ncar[e]
+    t = trk[e]
+    near[e] = _broad_phase(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
+                           geo_all[geo_off[t]:geo_off[t + 1]], bar_all[bar_off[t]:bar_off[t + 1]],
+                           box[a:b], prm[e], wall_cache[a:b], vref[a:b], pairs[e, :pcap[e]],
+                           meta[e], flags[a:b], slack[a:b])
+    return near[e] != 0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _advance(st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo, trk, off,
+             ncar, run, kpos, near, piece, hits, nsub, dt, fuel_on, with_contact, snap, path, turn,
+             geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta,
+             flags, slack):
+    """Slot by slot where run[e]: `_advance_slot`, with the broad phase where it asks, until
+    something is near (near[e] != 0: the broad phase's answer) or the tick is done (near[e] =
+    0). (The loop body is `_advance_parallel`'s: numba inlines no function of this many
+    arguments.)"""
     for e in range(off.shape[0]):
-        if run[e]:
-            _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near,
-                          piece, bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn)
+        if not run[e]:
+            continue
+        near[e] = 0
+        if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
+            kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tsc_all[trk[e], L.T_LENGTH])
+        while _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all,
+                            n_geo, trk, off, ncar, kpos, piece, hits, nsub, dt, fuel_on,
+                            with_contact, snap, path, turn, box, prm, wall_cache, vref, pairs,
+                            meta, flags, slack):
+            if _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_all,
+                                 bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags,
+                                 slack):
+                break
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
-def _advance_parallel(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece,
-                      bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
+def _advance_parallel(st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo, trk,
+                      off, ncar, run, kpos, near, piece, hits, nsub, dt, fuel_on, with_contact,
+                      snap, path, turn, geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache,
+                      vref, pairs, pcap, meta, flags, slack):
     """`_advance` with the slots shared among threads (independent: bit-identical)."""
     for e in numba.prange(off.shape[0]):
-        if run[e]:
-            _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near,
-                          piece, bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn)
+        if not run[e]:
+            continue
+        near[e] = 0
+        if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
+            kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tsc_all[trk[e], L.T_LENGTH])
+        while _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all,
+                            n_geo, trk, off, ncar, kpos, piece, hits, nsub, dt, fuel_on,
+                            with_contact, snap, path, turn, box, prm, wall_cache, vref, pairs,
+                            meta, flags, slack):
+            if _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_all,
+                                 bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags,
+                                 slack):
+                break
+
+
+@numba.njit(cache=True, inline="always")
+def _quiet(st, a, b, piece, n_geo, cars, prm, wall_cache, vref, pairs, meta, flags, slack):
+    """True if the contact broad phase on cars a..b-1 (rows of `st`; cars 0.. of the other
+    arrays, as `ContactSolver.broad_phase_args`) would return 0 having set only flags (to 0)
+    and slack: every car's cached wall clearance holds, no neighbour-list rebuild is due and
+    no listed pair's bounding circles meet. Then sets those as it would, with the same
+    arithmetic. False (nothing written): call the broad phase."""
+    n = b - a
+    move_cap = prm[P_MOVE_CAP]
+    for i in range(n):
+        x, y, yaw = st[a + i, L.S_X], st[a + i, L.S_Y], st[a + i, L.S_YAW]
+        if piece[a + i] < 0 or piece[a + i] >= n_geo or not (
+                math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
+            return False
+        moved = math.sqrt((x - wall_cache[i, 0]) ** 2 + (y - wall_cache[i, 1]) ** 2)
+        used = cars[i, C_GAIN] * moved + cars[i, C_RAD] * abs(_wrap(yaw - wall_cache[i, 2]))
+        if not (moved < move_cap and used < wall_cache[i, 3]):
+            return False
+    if n > 1:
+        if meta[0] == 0:
+            return False
+        for i in range(n):
+            if (st[a + i, L.S_X] - vref[i, 0]) ** 2 + (st[a + i, L.S_Y] - vref[i, 1]) ** 2 \
+                    > REBUILD_M * REBUILD_M:
+                return False
+        for k in range(meta[1]):
+            i, j = pairs[k, 0], pairs[k, 1]
+            reach = cars[i, C_RAD] + cars[j, C_RAD] + CAR_REACH_M
+            if not (st[a + j, L.S_X] - st[a + i, L.S_X]) ** 2 + (st[a + j, L.S_Y]
+                                                                 - st[a + i, L.S_Y]) ** 2 \
+                    > reach * reach:
+                return False
+    for i in range(n):
+        x, y, yaw = st[a + i, L.S_X], st[a + i, L.S_Y], st[a + i, L.S_YAW]
+        moved = math.sqrt((x - wall_cache[i, 0]) ** 2 + (y - wall_cache[i, 1]) ** 2)
+        used = cars[i, C_GAIN] * moved + cars[i, C_RAD] * abs(_wrap(yaw - wall_cache[i, 2]))
+        flags[i] = 0
+        slack[i] = wall_cache[i, 3] - used
+    return True
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -156,26 +248,6 @@ def _race_positions(st, run, off, ncar, race_pos):
         if not run[e] or ncar[e] < 2:
             continue
         rank_rows(st, off[e], off[e] + ncar[e], race_pos)
-
-
-@numba.njit(cache=True, inline="always")
-def _clear_of_walls(x, y, yaw, piece, geo, cars, prm, wall_cache, flags, slack):
-    """The contact broad phase's first test for a lone car, with the same arithmetic and
-    effects: True if the car's cached wall clearance cannot have been used up since it was
-    measured (the broad phase would then return 0 having set only flags and slack). False:
-    call the broad phase."""
-    if piece < 0 or piece >= geo.shape[0] or not (
-            math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
-        return False
-    moved = math.sqrt((x - wall_cache[0, 0]) ** 2 + (y - wall_cache[0, 1]) ** 2)
-    turn = yaw - wall_cache[0, 2]
-    turn = turn - 2.0 * math.pi * math.floor((turn + math.pi) / (2.0 * math.pi))
-    used = cars[0, C_GAIN] * moved + cars[0, C_RAD] * abs(turn)
-    if moved < prm[P_MOVE_CAP] and used < wall_cache[0, 3]:
-        flags[0] = 0
-        slack[0] = wall_cache[0, 3] - used
-        return True
-    return False
 
 
 @dataclass
@@ -238,15 +310,29 @@ class WorldBatch:
         self._info = np.zeros(2, dtype=np.int64)
         self._tracks: dict[int, int] = {}            # id(Track) -> index
         self._track_objs: list[Track] = []
-        # per track: (pt, surf, tsc, geo, runs, prun) in Python, and in typed lists for the kernels
+        # per track: (pt, surf, tsc, geo, runs, prun) in Python; for the physics kernels stacked
+        # (track t: rows off[t]:off[t + 1]), for the sensors in typed lists
         self._tables: list[tuple] = []
-        self._pt, self._surf, self._tsc = typed.List(), typed.List(), typed.List()
+        self._pt, self._surf, self._geo_rows, self._bar = (_Stacked() for _ in range(4))
+        self._tsc_all = np.zeros((0, 4))
+        self._n_geo = np.zeros(0, dtype=np.int64)      # pieces per track
         self._geo, self._runs, self._prun = typed.List(), typed.List(), typed.List()
         self._half = np.zeros(0)
         self._kinds: dict = {}
         self._slot_kind: list[_Kind | None] = [None] * self.n_slots
         self._solver: list = [None] * self.n_slots     # attached ContactSolver per slot
-        self._bps = _list_of(_dummy_bp(), self.n_slots)   # broad-phase args per slot
+        # the contact broad phase's tables and caches (ContactSolver.broad_phase_args) of every
+        # slot, rows as `state` (per car) or one per slot; a slot's solver, once attached, holds
+        # them during its resolve only (`_resolve` copies them there and back)
+        self._box = np.zeros((c, 7))                   # per-car constants
+        self._prm = np.zeros((self.n_slots, 7))        # parameters
+        self._wall_cache = np.zeros((c, 4))
+        self._vref = np.zeros((c, 2))
+        self._pairs = np.zeros((self.n_slots, max(64, 8 * self.capacity), 2), dtype=np.int64)
+        self._pcap = np.zeros(self.n_slots, dtype=np.int64)   # the slot's pair-list capacity
+        self._meta = np.zeros((self.n_slots, 3), dtype=np.int64)
+        self._flags = np.zeros(c, dtype=np.int8)
+        self._slack = np.zeros(c)
         self._noise_rng: list = [None] * self.n_slots
         self._noisy_slots = 0
         self._focus_state: list = [None] * self.n_slots
@@ -297,8 +383,17 @@ class WorldBatch:
         self._noise_rng[slot] = rng if noisy else None
         self._focus_state[slot] = FocusState(n) if self.focus else None
         if self.contact:
-            consts, caches = kind.solver_args[:_SOLVER_CONSTS], kind.solver_args[_SOLVER_CONSTS:]
-            _list_set(self._bps, slot, consts + tuple(c.copy() for c in caches))
+            args = kind.solver_args
+            self._box[rows], self._prm[slot] = args[2], args[3]
+            self._pcap[slot] = args[6].shape[0]
+            for src, dst in zip(args[_SOLVER_CONSTS:], self._caches(slot)):
+                dst[...] = src
+
+    def _caches(self, slot: int) -> tuple:
+        """Views of slot `slot`'s broad-phase caches, as ContactSolver.broad_phase_args[4:]."""
+        rows = self.rows(slot)
+        return (self._wall_cache[rows], self._vref[rows], self._pairs[slot, :self._pcap[slot]],
+                self._meta[slot], self._flags[rows], self._slack[rows])
 
     def _kind(self, key, track: Track, cars: list[CarSpec]) -> _Kind:
         kind = self._kinds.get(key)
@@ -310,11 +405,11 @@ class WorldBatch:
         kind = _Kind(world, self._track_of(track), cp, curve_w, curve_t)
         if self.contact:
             solver = self._new_solver(kind)
-            geo = self._tables[kind.track_index][3]
+            t = kind.track_index
             args = solver.broad_phase_args
-            # the slot copies hold writable arrays only (one numba type for every slot)
-            kind.solver_args = (geo,) + tuple(args[1:_SOLVER_CONSTS]) + tuple(
-                c.copy() for c in args[_SOLVER_CONSTS:])
+            kind.solver_args = tuple(c.copy() for c in args)    # (the caches as reset)
+            if self._bar.rows(t) is None:
+                self._bar.put(t, args[1])
             kind.pool.append(solver)
         self._kinds[key] = kind
         return kind
@@ -329,12 +424,16 @@ class WorldBatch:
                                            np.array(track.runs, dtype=np.float64),
                                            np.array(track.piece_run, dtype=np.int64))
             self._tables.append(tables)
+            pt, surf, tsc, geo = tables[:4]
+            self._pt.put(t, pt)
+            self._surf.put(t, surf)
+            self._geo_rows.put(t, geo)
+            self._tsc_all = np.vstack([self._tsc_all, tsc[None]])
+            self._n_geo = np.append(self._n_geo, geo.shape[0])
             if t == 0:
-                (self._pt, self._surf, self._tsc, self._geo, self._runs,
-                 self._prun) = (_list_of(x, 1) for x in tables)
+                self._geo, self._runs, self._prun = (_list_of(x, 1) for x in tables[3:])
             else:
-                for lst, x in zip((self._pt, self._surf, self._tsc, self._geo, self._runs,
-                                   self._prun), tables):
+                for lst, x in zip((self._geo, self._runs, self._prun), tables[3:]):
                     _list_append(lst, x)
             self._half = np.append(self._half, track.width / 2)
         return t
@@ -370,14 +469,9 @@ class WorldBatch:
             self._solver[slot] = None
 
     def _attach(self, slot: int):
-        """Give the slot a contact solver holding its broad-phase caches."""
+        """Give the slot a contact solver (its caches come with each `_resolve`)."""
         kind = self._slot_kind[slot]
         solver = kind.pool.pop() if kind.pool else self._new_solver(kind)
-        mine = _list_get(self._bps, slot)
-        theirs = solver.broad_phase_args
-        for src, dst in zip(mine[_SOLVER_CONSTS:], theirs[_SOLVER_CONSTS:]):
-            k = min(src.shape[0], dst.shape[0])
-            dst[:k] = src[:k]
         self._solver[slot] = solver
         return solver
 
@@ -402,10 +496,14 @@ class WorldBatch:
         run = mask.copy()
         self._kpos[:] = 0
         while True:
-            self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt,
-                          self._surf, self._tsc, self._track, self.offsets, self.n_cars, run,
-                          self._kpos, self._near, self._piece, self._bps, self.hits, nsub,
-                          DT, self.fuel, self.contact, self._snap, self._path, self._turn)
+            self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt.all,
+                          self._pt.off, self._surf.all, self._surf.off, self._tsc_all,
+                          self._n_geo, self._track, self.offsets, self.n_cars, run, self._kpos,
+                          self._near, self._piece, self.hits, nsub, DT, self.fuel, self.contact,
+                          self._snap, self._path, self._turn, self._geo_rows.all,
+                          self._geo_rows.off, self._bar.all, self._bar.off, self._box, self._prm,
+                          self._wall_cache, self._vref, self._pairs, self._pcap, self._meta,
+                          self._flags, self._slack)
             near = np.flatnonzero(run & (self._near != 0))
             if near.size == 0:
                 break
@@ -421,6 +519,9 @@ class WorldBatch:
     def _resolve(self, slot: int) -> None:
         """World.finish_tick's contact resolve for one slot."""
         solver = self._solver[slot] or self._attach(slot)
+        for src, dst in zip(self._caches(slot), solver.broad_phase_args[_SOLVER_CONSTS:]):
+            k = min(src.shape[0], dst.shape[0])
+            dst[:k] = src[:k]
         rows = self.rows(slot)
         st = self.state
         cols = [st[rows, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R)]
@@ -434,8 +535,14 @@ class WorldBatch:
             t = int(self._track[slot])
             pt, surf, tsc = self._tables[t][:3]
             kernel.refresh(st[rows], self._cp[rows], pt, surf, tsc, True)
-        args = solver.broad_phase_args          # resolve may have grown its pair list
-        _list_set(self._bps, slot, (self._tables[int(self._track[slot])][3],) + tuple(args[1:]))
+        caches = solver.broad_phase_args[_SOLVER_CONSTS:]
+        pairs = caches[2]                       # resolve may have grown its pair list
+        if pairs.shape[0] > self._pairs.shape[1]:
+            more = pairs.shape[0] - self._pairs.shape[1]
+            self._pairs = np.pad(self._pairs, ((0, 0), (0, more), (0, 0)))
+        self._pcap[slot] = pairs.shape[0]
+        for src, dst in zip(caches, self._caches(slot)):
+            dst[...] = src
 
     def sense(self, mask: np.ndarray) -> None:
         """Compute `sensors` of the masked slots (as `SensorSuite.frame`; `step` does this)."""
@@ -492,20 +599,24 @@ def _list_append(items, item):
     items.append(item)
 
 
-@numba.njit(cache=True)
-def _list_set(items, i, item):
-    items[i] = item
+class _Stacked:
+    """Tables of different row counts (one per track) stacked in one array for the kernels:
+    table t is all[off[t]:off[t + 1]]; a table not yet put has no rows."""
 
+    def __init__(self):
+        self._tables: list = []
+        self.all = np.zeros((0, 1))
+        self.off = np.zeros(1, dtype=np.int64)
 
-@numba.njit(cache=True)
-def _list_get(items, i):
-    return items[i]
+    def rows(self, t: int):
+        """Table t, or None if it was never put."""
+        return self._tables[t] if t < len(self._tables) else None
 
-
-def _dummy_bp() -> tuple:
-    """Broad-phase arguments of the numba types a solver's have, for slots without one."""
-    f2, f1 = np.zeros((1, 1)), np.zeros(1)
-    return (f2, f2, f2, f1, f2, f2, np.zeros((1, 2), dtype=np.int64), np.zeros(3, dtype=np.int64),
-            np.zeros(1, dtype=np.int8), f1)
-
-
+    def put(self, t: int, table: np.ndarray) -> None:
+        """Set table t (2-D, float64; every table of one stack has the same width)."""
+        self._tables += [None] * (t + 1 - len(self._tables))
+        self._tables[t] = np.ascontiguousarray(table, dtype=np.float64)
+        width = self._tables[t].shape[1]
+        parts = [x if x is not None else np.zeros((0, width)) for x in self._tables]
+        self.all = np.concatenate(parts)
+        self.off = np.concatenate([[0], np.cumsum([p.shape[0] for p in parts])]).astype(np.int64)
