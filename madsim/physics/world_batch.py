@@ -15,11 +15,12 @@ and Python is entered only for a slot whose broad phase finds something near (it
 `ContactSolver` then resolves, as in `World`).
 
 Contact solvers are the expensive part of a World (building the pymunk barrier segments takes
-~100 ms and a few MB per solver), so a slot gets one only when it first needs one: until then
-its broad phase runs on its own copy of the solver's reset-state caches (the broad phase never
-touches pymunk), and at the first "near" the caches move into a solver taken from a pool of
-solvers built for the same track and cars. The solver goes back to the pool, reset, when the
-slot starts its next episode. Episodes that never touch a barrier or another car never build one.
+~100 ms and a few MB per solver), so a slot gets one only when it first needs one: the broad
+phase (which never touches pymunk) runs on the slot's rows of batch-wide copies of a solver's
+tables and caches, and at the first "near" the slot takes a solver from a pool of solvers
+built for the same track and cars; each resolve copies the caches into it and back. The
+solver goes back to the pool, reset, when the slot starts its next episode. Episodes that
+never touch a barrier or another car never build one.
 """
 
 from __future__ import annotations
