@@ -380,9 +380,7 @@ def slipstream(st, cp, a, b, length):
         vx = st[i, S_VX]
         if vx <= SLIP_MIN_SPEED:
             continue
-        x, y, yaw = st[i, S_X], st[i, S_Y], st[i, S_YAW]
-        vg = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
-        hx, hy = st[i, S_VXG] / vg, st[i, S_VYG] / vg
+        x, y, yaw, hx, hy = _slip_heading(st, i)
         cdv = cp[i, C_CD] * vx
         k = 1.0
         for step in (1, -1):          # along the track both ways
@@ -398,6 +396,13 @@ def slipstream(st, cp, a, b, length):
                     break
                 k = _slip_pair(st, cp, i, a + order[q], x, y, yaw, hx, hy, vx, k)
         st[i, S_DRAGK] = k
+
+
+@numba.njit(inline="always", **_JIT)
+def _slip_heading(st, i):
+    """Car i's x, y (m), yaw (rad) and unit direction of travel (hx, hy)."""
+    vg = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
+    return st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_VXG] / vg, st[i, S_VYG] / vg
 
 
 @numba.njit(inline="always", **_JIT)
@@ -422,9 +427,7 @@ def slipstream_few(st, cp, a, b):
         vx = st[i, S_VX]
         if vx <= SLIP_MIN_SPEED:
             continue
-        x, y, yaw = st[i, S_X], st[i, S_Y], st[i, S_YAW]
-        vg = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
-        hx, hy = st[i, S_VXG] / vg, st[i, S_VYG] / vg
+        x, y, yaw, hx, hy = _slip_heading(st, i)
         k = 1.0
         for j in range(a, b):
             if j != i:

@@ -75,12 +75,14 @@ _SOLVER_CONSTS = 4       # broad_phase_args: (geo, bar, cars, prm) never written
 
 
 @numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
-def _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo, trk,
-                  off, ncar, kpos, piece, hits, nsub, dt, fuel_on, with_contact, snap, path,
-                  turn, box, prm, wall_cache, vref, pairs, meta, flags, slack):
+def _advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub, dt,
+                  fuel_on, with_contact, snap, path, turn, contact):
     """World.step for slot e from sub-step kpos[e] (the rest at once where provably nothing is
     near): returns 0 when all nsub are done with nothing near (kpos[e] = nsub), 1 when the
-    broad phase must run now (kpos[e] = sub-steps done)."""
+    broad phase must run now (kpos[e] = sub-steps done). tables, contact: `WorldBatch`'s
+    stacked per-track tables and broad-phase arrays (see `_advance`)."""
+    pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo = tables
+    _, _, _, _, box, prm, wall_cache, vref, pairs, _, meta, flags, slack = contact
     a, b = off[e], off[e] + ncar[e]
     t = trk[e]
     pt, surf, tsc = pt_all[pt_off[t]:pt_off[t + 1]], surf_all[surf_off[t]:surf_off[t + 1]], tsc_all[t]
@@ -110,10 +112,11 @@ def _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_all, bar_off, box,
-                      prm, wall_cache, vref, pairs, pcap, meta, flags, slack):
-    """The contact broad phase of slot e's cars (on its rows of the flat tables and caches, as
-    `ContactSolver.broad_phase_args`); near[e] = its answer; True if not 0 (something near)."""
+def _broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
+    """The contact broad phase of slot e's cars (on its rows of the batch's broad-phase arrays,
+    as `ContactSolver.broad_phase_args`); near[e] = its answer; True if not 0 (something near)."""
+    geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags, \
+        slack = contact
     a, b = off[e], off[e] + ncar[e]
     t = trk[e]
     near[e] = _broad_phase(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
@@ -123,51 +126,43 @@ def _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_
     return near[e] != 0
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _advance_one(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits, nsub, dt,
+                 fuel_on, with_contact, snap, path, turn, contact):
+    """`_advance_slot` for slot e, with the broad phase where it asks, until something is near
+    (near[e] != 0: the broad phase's answer) or the tick is done (near[e] = 0). (Inlined into
+    the loops: the tuples are unpacked only in the callees, which count no references.)"""
+    near[e] = 0
+    if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
+        kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
+    while _advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub, dt,
+                        fuel_on, with_contact, snap, path, turn, contact):
+        if _broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
+            break
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _advance(st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo, trk, off,
-             ncar, run, kpos, near, piece, hits, nsub, dt, fuel_on, with_contact, snap, path, turn,
-             geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta,
-             flags, slack):
-    """Slot by slot where run[e]: `_advance_slot`, with the broad phase where it asks, until
-    something is near (near[e] != 0: the broad phase's answer) or the tick is done (near[e] =
-    0). (The loop body is `_advance_parallel`'s: numba inlines no function of this many
-    arguments.)"""
+def _advance(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece, hits, nsub, dt,
+             fuel_on, with_contact, snap, path, turn, contact):
+    """`_advance_one` for every slot where run[e], one after the other. tables: (pt, pt_off,
+    surf, surf_off, tsc, n_geo), per-track tables stacked (track t: rows off[t]:off[t + 1];
+    tsc row t; n_geo[t] pieces); contact: (geo, geo_off, bar, bar_off, box, prm, wall_cache,
+    vref, pairs, pcap, meta, flags, slack): ContactSolver.broad_phase_args of every slot
+    (per track stacked, per car rows as `st`, per slot rows e; pairs[e, :pcap[e]])."""
     for e in range(off.shape[0]):
-        if not run[e]:
-            continue
-        near[e] = 0
-        if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
-            kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tsc_all[trk[e], L.T_LENGTH])
-        while _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all,
-                            n_geo, trk, off, ncar, kpos, piece, hits, nsub, dt, fuel_on,
-                            with_contact, snap, path, turn, box, prm, wall_cache, vref, pairs,
-                            meta, flags, slack):
-            if _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_all,
-                                 bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags,
-                                 slack):
-                break
+        if run[e]:
+            _advance_one(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits,
+                         nsub, dt, fuel_on, with_contact, snap, path, turn, contact)
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
-def _advance_parallel(st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo, trk,
-                      off, ncar, run, kpos, near, piece, hits, nsub, dt, fuel_on, with_contact,
-                      snap, path, turn, geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache,
-                      vref, pairs, pcap, meta, flags, slack):
+def _advance_parallel(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece, hits,
+                      nsub, dt, fuel_on, with_contact, snap, path, turn, contact):
     """`_advance` with the slots shared among threads (independent: bit-identical)."""
     for e in numba.prange(off.shape[0]):
-        if not run[e]:
-            continue
-        near[e] = 0
-        if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
-            kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tsc_all[trk[e], L.T_LENGTH])
-        while _advance_slot(e, st, cp, cw, ct, u, pt_all, pt_off, surf_all, surf_off, tsc_all,
-                            n_geo, trk, off, ncar, kpos, piece, hits, nsub, dt, fuel_on,
-                            with_contact, snap, path, turn, box, prm, wall_cache, vref, pairs,
-                            meta, flags, slack):
-            if _broad_phase_slot(e, st, trk, off, ncar, near, piece, geo_all, geo_off, bar_all,
-                                 bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags,
-                                 slack):
-                break
+        if run[e]:
+            _advance_one(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits,
+                         nsub, dt, fuel_on, with_contact, snap, path, turn, contact)
 
 
 @numba.njit(cache=True, inline="always")
@@ -496,15 +491,16 @@ class WorldBatch:
                              f"{L.CONTROL_COLUMNS[col]} is {u[row, col]!r} (must be finite)")
         run = mask.copy()
         self._kpos[:] = 0
+        tables = (self._pt.all, self._pt.off, self._surf.all, self._surf.off, self._tsc_all,
+                  self._n_geo)
+        contact = (self._geo_rows.all, self._geo_rows.off, self._bar.all, self._bar.off,
+                   self._box, self._prm, self._wall_cache, self._vref, self._pairs, self._pcap,
+                   self._meta, self._flags, self._slack)
         while True:
-            self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt.all,
-                          self._pt.off, self._surf.all, self._surf.off, self._tsc_all,
-                          self._n_geo, self._track, self.offsets, self.n_cars, run, self._kpos,
-                          self._near, self._piece, self.hits, nsub, DT, self.fuel, self.contact,
-                          self._snap, self._path, self._turn, self._geo_rows.all,
-                          self._geo_rows.off, self._bar.all, self._bar.off, self._box, self._prm,
-                          self._wall_cache, self._vref, self._pairs, self._pcap, self._meta,
-                          self._flags, self._slack)
+            self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, tables,
+                          self._track, self.offsets, self.n_cars, run, self._kpos, self._near,
+                          self._piece, self.hits, nsub, DT, self.fuel, self.contact, self._snap,
+                          self._path, self._turn, contact)
             near = np.flatnonzero(run & (self._near != 0))
             if near.size == 0:
                 break
