@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from numba import typed
 
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
@@ -207,33 +206,36 @@ def _quiet(st, a, b, piece, n_geo, cars, prm, wall_cache, vref, pairs, meta, fla
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin, active,
-                max_range, local, out):
-    """SensorSuite.frame without focus and noise for slot e's cars."""
+def _sense_slot(e, st, off, ncar, trk, tables, half, angles, race_pos, origin, active, max_range,
+                local, out):
+    """SensorSuite.frame without focus and noise for slot e's cars. tables: (geo, geo_off,
+    runs, runs_off, piece_run, piece_run_off), per track stacked as `_advance`'s."""
+    geo, geo_off, runs, runs_off, prun, prun_off = tables
     a, b = off[e], off[e] + ncar[e]
     t = trk[e]
-    sensor_kernel(local[:b - a], st[a:b], geos[t], runs[t], pruns[t], half[t], angles[a:b],
-                  race_pos[a:b], origin[a:b], active[a:b], max_range, out[a:b])
+    sensor_kernel(local[:b - a], st[a:b], geo[geo_off[t]:geo_off[t + 1]],
+                  runs[runs_off[t]:runs_off[t + 1]], prun[prun_off[t]:prun_off[t + 1]], half[t],
+                  angles[a:b], race_pos[a:b], origin[a:b], active[a:b], max_range, out[a:b])
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _sense(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin, active,
-           max_range, local, out):
+def _sense(st, run, off, ncar, trk, tables, half, angles, race_pos, origin, active, max_range,
+           local, out):
     """`_sense_slot` for every slot where run[e], one after the other."""
     for e in range(off.shape[0]):
         if run[e]:
-            _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-                        active, max_range, local, out)
+            _sense_slot(e, st, off, ncar, trk, tables, half, angles, race_pos, origin, active,
+                        max_range, local, out)
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
-def _sense_parallel(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-                    active, max_range, local, out):
+def _sense_parallel(st, run, off, ncar, trk, tables, half, angles, race_pos, origin, active,
+                    max_range, local, out):
     """`_sense` with the slots shared among threads."""
     for e in numba.prange(off.shape[0]):
         if run[e]:
-            _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-                        active, max_range, local, out)
+            _sense_slot(e, st, off, ncar, trk, tables, half, angles, race_pos, origin, active,
+                        max_range, local, out)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -307,12 +309,12 @@ class WorldBatch:
         self._tracks: dict[int, int] = {}            # id(Track) -> index
         self._track_objs: list[Track] = []
         # per track: (pt, surf, tsc, geo, runs, prun) in Python; for the physics kernels stacked
-        # (track t: rows off[t]:off[t + 1]), for the sensors in typed lists
+        # (track t: rows off[t]:off[t + 1])
         self._tables: list[tuple] = []
-        self._pt, self._surf, self._geo_rows, self._bar = (_Stacked() for _ in range(4))
+        self._pt, self._surf, self._geo_rows, self._bar, self._runs = (_Stacked() for _ in range(5))
+        self._prun = _Stacked(ndim=1, dtype=np.int64)
         self._tsc_all = np.zeros((0, 4))
         self._n_geo = np.zeros(0, dtype=np.int64)      # pieces per track
-        self._geo, self._runs, self._prun = typed.List(), typed.List(), typed.List()
         self._half = np.zeros(0)
         self._kinds: dict = {}
         self._slot_kind: list[_Kind | None] = [None] * self.n_slots
@@ -420,17 +422,12 @@ class WorldBatch:
                                            np.array(track.runs, dtype=np.float64),
                                            np.array(track.piece_run, dtype=np.int64))
             self._tables.append(tables)
-            pt, surf, tsc, geo = tables[:4]
-            self._pt.put(t, pt)
-            self._surf.put(t, surf)
-            self._geo_rows.put(t, geo)
+            pt, surf, tsc, geo, runs, prun = tables
+            for stack, table in zip((self._pt, self._surf, self._geo_rows, self._runs,
+                                     self._prun), (pt, surf, geo, runs, prun)):
+                stack.put(t, table)
             self._tsc_all = np.vstack([self._tsc_all, tsc[None]])
             self._n_geo = np.append(self._n_geo, geo.shape[0])
-            if t == 0:
-                self._geo, self._runs, self._prun = (_list_of(x, 1) for x in tables[3:])
-            else:
-                for lst, x in zip((self._geo, self._runs, self._prun), tables[3:]):
-                    _list_append(lst, x)
             self._half = np.append(self._half, track.width / 2)
         return t
 
@@ -544,8 +541,10 @@ class WorldBatch:
     def sense(self, mask: np.ndarray) -> None:
         """Compute `sensors` of the masked slots (as `SensorSuite.frame`; `step` does this)."""
         mask = np.asarray(mask, dtype=bool)
-        self._sense(self.state, mask, self.offsets, self.n_cars, self._track, self._geo,
-                    self._runs, self._prun, self._half, self._angles, self.race_pos, self._origin,
+        tables = (self._geo_rows.all, self._geo_rows.off, self._runs.all, self._runs.off,
+                  self._prun.all, self._prun.off)
+        self._sense(self.state, mask, self.offsets, self.n_cars, self._track, tables,
+                    self._half, self._angles, self.race_pos, self._origin,
                     self._active, SENSOR_RANGE_M, self._local, self.sensors)
         if self.focus or self._noisy_slots:
             for e in np.flatnonzero(mask).tolist():
@@ -578,31 +577,15 @@ class WorldBatch:
         return sum(s is not None for s in self._solver)
 
 
-# typed-list operations inside cached kernels: numba compiles typed.List's Python-side methods
-# in every process (about 0.15 s per item type and operation), these come from the disk cache
-
-
-@numba.njit(cache=True)
-def _list_of(item, n):
-    """A typed list of n times `item`."""
-    out = typed.List()
-    for _ in range(n):
-        out.append(item)
-    return out
-
-
-@numba.njit(cache=True)
-def _list_append(items, item):
-    items.append(item)
-
-
 class _Stacked:
     """Tables of different row counts (one per track) stacked in one array for the kernels:
-    table t is all[off[t]:off[t + 1]]; a table not yet put has no rows."""
+    table t is all[off[t]:off[t + 1]]; a table not yet put has no rows. Every table of a stack
+    has `ndim` dimensions, the same `dtype` and (2-D) the same width."""
 
-    def __init__(self):
+    def __init__(self, ndim: int = 2, dtype=np.float64):
         self._tables: list = []
-        self.all = np.zeros((0, 1))
+        self.dtype = np.dtype(dtype)
+        self.all = np.zeros((0, 1) if ndim == 2 else 0, dtype=self.dtype)
         self.off = np.zeros(1, dtype=np.int64)
 
     def rows(self, t: int):
@@ -610,10 +593,10 @@ class _Stacked:
         return self._tables[t] if t < len(self._tables) else None
 
     def put(self, t: int, table: np.ndarray) -> None:
-        """Set table t (2-D, float64; every table of one stack has the same width)."""
+        """Set table t."""
         self._tables += [None] * (t + 1 - len(self._tables))
-        self._tables[t] = np.ascontiguousarray(table, dtype=np.float64)
-        width = self._tables[t].shape[1]
-        parts = [x if x is not None else np.zeros((0, width)) for x in self._tables]
+        self._tables[t] = np.ascontiguousarray(table, dtype=self.dtype)
+        empty = np.zeros((0,) + self._tables[t].shape[1:], dtype=self.dtype)
+        parts = [x if x is not None else empty for x in self._tables]
         self.all = np.concatenate(parts)
         self.off = np.concatenate([[0], np.cumsum([p.shape[0] for p in parts])]).astype(np.int64)
