@@ -1,6 +1,6 @@
-"""`world_batch._quiet`: the batch's cheap stand-in for the contact broad phase after a whole
-tick. Where it answers True the broad phase itself (same state, same caches) returns 0 and
-writes exactly the flags and slack `_quiet` wrote, changing no cache; where it answers False
+"""`world_batch_kernels.quiet`: the batch's cheap stand-in for the contact broad phase after a
+whole tick. Where it answers True the broad phase itself (same state, same caches) returns 0 and
+writes exactly the flags and slack `quiet` wrote, changing no cache; where it answers False
 it has written nothing. Checked over random moves of a few cars from a measured state (some
 small enough to keep every cached clearance, some not, some bringing cars together)."""
 
@@ -12,7 +12,7 @@ import pytest
 from madsim.physics import layout as L
 from madsim.physics.contact import ContactSolver
 from madsim.physics.contact_kernels import _broad_phase
-from madsim.physics.world_batch import _quiet
+from madsim.physics.world_batch_kernels import quiet as quiet_check
 from madsim.tracks import load_track
 
 HL, HW, MASS, IZZ = 2.3, 0.95, 1200.0, 2000.0
@@ -42,7 +42,7 @@ def test_quiet_agrees_with_the_broad_phase(n):
         piece[1:n + 1] = track.piece_at(s)
         mine = [a.copy() for a in args]
         theirs = [a.copy() for a in args]
-        quiet = _quiet(st, 1, n + 1, piece, mine[0].shape[0], *mine[2:])
+        quiet = quiet_check(st, 1, n + 1, piece, mine[0].shape[0], *mine[2:])
         seen[bool(quiet)] += 1
         if not quiet:
             assert all(np.array_equal(a, b) for a, b in zip(mine, args))    # wrote nothing
