@@ -51,6 +51,7 @@ B_PIT = 5                   # first pit-wall column of the per-piece barrier tab
 C_HL, C_HW, C_RAD, C_MASS, C_IZZ, C_GAIN, C_WIN = range(7)
 # entries of the scalar parameter array
 (P_LENGTH, P_MOVE_CAP, P_RMAX, P_E_CAR, P_SKILL, P_STRETCH, P_CHORD2, P_PIT) = range(8)
+N_PRM = P_PIT + 1   # length of a contact solver's parameter row
 
 
 # --- compiled kernels ------------------------------------------------------------------------------

@@ -44,6 +44,7 @@ from madsim.physics.sensors import (
 )
 from madsim.physics.tables import car_table, piece_table
 from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available
+from madsim.physics.contact_kernels import N_PRM
 from madsim.physics.world_batch_kernels import (
     advance_slots,
     advance_slots_parallel,
@@ -132,7 +133,7 @@ class WorldBatch:
         # slot, rows as `state` (per car) or one per slot; a slot's solver, once attached, holds
         # them during its resolve only (`_resolve` copies them there and back)
         self._box = np.zeros((c, 7))                   # per-car constants
-        self._prm = np.zeros((self.n_slots, 7))        # parameters
+        self._prm = np.zeros((self.n_slots, N_PRM))    # parameters
         self._wall_cache = np.zeros((c, 4))
         self._vref = np.zeros((c, 2))
         self._pairs = np.zeros((self.n_slots, max(64, 8 * self.capacity), 2), dtype=np.int64)
