@@ -256,3 +256,24 @@ def test_sliding_along_a_pit_wall_never_catches_on_its_seams():
         assert v @ nu < 0.5, s
         checked += 1
     assert checked > 3000
+
+
+def test_track_maps_draw_the_pit_walls(kinds_track):
+    """draw_track adds the pit-wall quads, corner for corner, as one polygon collection."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from madsim.render.trackmap import draw_track
+
+    fig, ax = plt.subplots()
+    draw_track(ax, kinds_track, marks_every_m=0)
+    drawn = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    plt.close(fig)
+    quads = kinds_track.pit_wall_quads()[0]
+    assert len(drawn) == 1
+    paths = drawn[0].get_paths()
+    assert len(paths) == quads.shape[0]
+    np.testing.assert_allclose(paths[0].vertices[:4], quads[0], atol=1e-9)
