@@ -224,7 +224,7 @@ class FocusState:
 
     def request(self, cars: np.ndarray, focus_deg: np.ndarray) -> None:
         """Store the focus requests of this tick's control messages (used for the next state)."""
-        f = np.ascontiguousarray(np.broadcast_to(np.asarray(focus_deg, dtype=np.float64), cars.shape))
+        f = np.array(np.broadcast_to(np.asarray(focus_deg, dtype=np.float64), cars.shape))   # writable, as the compiled tick passes it (no 2nd compile)
         focus_request(np.ascontiguousarray(cars, dtype=np.int64), f, self.requested_deg,
                       self.next_allowed_s, self.earliest)
 
