@@ -62,7 +62,8 @@ TABLE = (
  CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
  BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
  PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
- OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS, TIME_S, ON_TRACK) = range(len(TABLE))
+ OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS, TIME_S, ON_TRACK) = (np.int64(k) for k in range(len(TABLE)))
+# int64 row numbers, not int literals: see array_table's views
 
 
 @numba.njit(cache=True, error_model="numpy")
