@@ -20,7 +20,9 @@ client is a plain socket in this process that sends the init once, then answers 
 message at once with one fixed C++-style control string, without parsing anything. The clock
 runs over the last `--ticks` ticks, after WARMUP ticks (1,000) that absorb start-up costs (the
 first ticks used to wait for numba; they are component figures), up to `***shutdown***`. Real TORCS
-reaches about 10,400 ticks/s here with a minimal client (issue 4). With --profile FILE the
+reaches about 10,400 ticks/s here with a minimal client (issue 4). Each case also prints the
+server process's CPU time per tick over the same ticks (user + system, from /proc): on a shared
+machine it moves far less than the wall rate, which depends on where server and client run. With --profile FILE the
 server runs under cProfile and its 25 most expensive functions (own time) are printed.
 
 Cases (`--case`, default all three):
