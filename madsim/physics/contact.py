@@ -5,9 +5,10 @@ velocities, which it changes in place (positions separated, velocities changed b
 and returns a `ContactReport` (per car: wall contact, car contact, damage added; car pairs).
 
 1. Broad phase (compiled, no pymunk). Walls: per car a conservative clearance to the barrier
-   lines (lateral extent of the box at the car's track position against the narrowest barrier
-   offset within reach, less the bulge of a curved barrier over the box and the polylines'
-   chord error), reused while the car cannot have moved enough to use it up. Cars: exact box
+   lines and the pit walls (lateral extent of the box at the car's track position against the
+   narrowest barrier offset within reach and the lateral gap to any pit wall's strip within
+   reach, less the bulge of a curved barrier over the box and the polylines' chord error),
+   reused while the car cannot have moved enough to use it up. Cars: exact box
    overlap (separating axes) on a neighbour list rebuilt from a hashed grid when some car has
    moved `REBUILD_M`. Contacts act after penetration, so "near" means overlapping (cars) or
    within the bulge allowance + `WALL_REACH_M` (walls). Nothing near: pymunk is not touched.
@@ -15,7 +16,10 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
    path length and turn): when it proves every call on the way would find nothing and change
    no cache, World and WorldBatch advance the cars that stretch in one kernel call.
 2. Narrow phase (pymunk). Cars are box bodies of their size, barriers static segments built once
-   per track from the track's barrier polylines (one static body per barrier material): a solver
+   per track from the track's barrier polylines (one static body per barrier material), pit
+   walls (borders of style `wall` with a side beyond, track spec 6) the closed outlines of
+   `Track.pit_wall_quads` on one more static body (faces and end caps as TORCS builds them,
+   segment neighbours set so that the joints are not hit): a solver
    holds a barrier space only between its first consultation and `reset()`, which empties it and
    returns it to the track's pool, so a later solver on the same Track object (a reset onto a
    track used before) takes it instead of building one (40-300 ms). A space coming back holds
@@ -34,6 +38,12 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
      max(1, |v|), c = v.n / V) and `v -= n vn rebound`. So the into-wall speed is multiplied
      by (1 - k_friction - rebound) per contact step (0.5 for TORCS's barrier: friction 0,
      rebound 0.5; TORCS's "friction" damps the normal speed) and the tangential speed is kept.
+   - pit walls, the same way per direction and deepest point (a contact whose normal runs
+     along the track away from the wall's ends is a seam between two of its segments: dropped),
+     but TORCS's pit-wall rule: when
+     vn < 0, the elastic impulse on an immovable wall j = -(1 + e) vn / (1/m + (p x n)^2 / I),
+     e = 1, on v in full and on r by half (|r| <= 3 rad/s), damage 0.1 x 2e-5 j^2 (x1.5 within
+     +-60 deg of the nose) x skill.
    - car-car, at the manifold's mid point along pymunk's normal, when the points approach:
      `j = -(1 + e) v_rel.n / (1/m1 + 1/m2 + (r1 x n)^2/I1 + (r2 x n)^2/I2)` on both velocities
      and yaw rates (capped at 3 rad/s), e = 1 as in TORCS (`car_restitution` lowers it), damage
@@ -57,8 +67,9 @@ wall direction responds once per step (TORCS once per corner, with stale corner 
 cars are separated fully, not by at most 5 cm; walls are pymunk segments, so the side of a box
 hits a convex wall corner (TORCS tests corners only), with TORCS's exact corner test as the
 safety net. Boxes are centred on (x, y) (TORCS's CG offset in the body is ignored). pymunk is
-2-D: contacts between cars far apart along the track, and wall contacts whose car point is well
-inside the car's own barrier lines, are ignored (bridges). Cars with a non-finite pose are
+2-D: contacts between cars far apart along the track, and barrier contacts whose car point is
+well inside the car's own barrier lines, are ignored (bridges); pit walls are not told apart by
+level, and their height is not used. Cars with a non-finite pose are
 ignored.
 """
 
@@ -86,8 +97,10 @@ from madsim.physics.contact_kernels import (
     C_MASS,
     C_RAD,
     C_WIN,
+    B_PIT,
     LEVEL_STRETCH_MAX,
     MIN_RADIUS_M,
+    MAT_PIT_WALL,
     SKILL_SEMI_PRO,
     WINDOW_SLACK_M,
     _broad_phase,
@@ -112,6 +125,8 @@ _ARB_FIELDS = (pmb.ArbiterFields.BODY_A_ID | pmb.ArbiterFields.BODY_B_ID | pmb.A
                | pmb.ArbiterFields.DISTANCE_2)
 _ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2 x (pa, pb, dist))
 _F64, _I64 = np.dtype(np.float64), np.dtype(np.int64)
+
+JOIN_M = 0.01    # pit-wall quads whose edges meet this closely are one wall (float32 piece starts)
 
 # Track -> its free barrier spaces (a cache: which space a solver takes never changes a result)
 _POOLS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -179,7 +194,9 @@ class ContactSolver:
         self._cars = cars
         self._prm = np.array([track.length, WINDOW_SLACK_M / stretch if cache_ok else 0.0,
                               rad.max(), car_restitution, damage_factor,
-                              min(stretch, LEVEL_STRETCH_MAX), chord ** 2])
+                              min(stretch, LEVEL_STRETCH_MAX), chord ** 2,
+                              float(np.isfinite(self._bar[:, B_PIT]).any()
+                                    or np.isfinite(self._bar[:, B_PIT + 2]).any())])
 
         # --- broad-phase caches and outputs -------------------------------------------------
         self._wall_cache = np.zeros((n, 4))          # x, y, yaw at the last full check, budget
@@ -386,13 +403,15 @@ class ContactSolver:
 
 
 def _barrier_table(track) -> np.ndarray:
-    """(P, 5) per piece: barrier offsets from the centre line at its start and end (left start,
-    left end, right start, right end; m, road half width + border + side) and the radius of the
-    barrier line on the inside of the bend (m, >= MIN_RADIUS_M; inf on straights)."""
+    """(P, 9) per piece: barrier offsets from the centre line at its start and end (left start,
+    left end, right start, right end; m, road half width + border + side), the radius of the
+    barrier line on the inside of the bend (m, >= MIN_RADIUS_M; inf on straights), then from
+    column B_PIT the pit wall's inner and outer offsets on the left and on the right (m; inf and
+    -inf where that side has none)."""
     p = track.pieces
     geo = track.geo
     half = track.width / 2.0
-    out = np.empty((p.shape[0], 5))
+    out = np.empty((p.shape[0], 9))
     out[:, 0] = half + p[:, COL["border_w_l"]] + p[:, COL["side_w0_l"]]
     out[:, 1] = half + p[:, COL["border_w_l"]] + p[:, COL["side_w1_l"]]
     out[:, 2] = half + p[:, COL["border_w_r"]] + p[:, COL["side_w0_r"]]
@@ -400,6 +419,10 @@ def _barrier_table(track) -> np.ndarray:
     kind = geo[:, GEO_KIND]
     inner = np.where(kind == 1, out[:, :2].max(axis=1), out[:, 2:4].max(axis=1))
     out[:, 4] = np.where(kind == 0, np.inf, np.maximum(geo[:, GEO_R] - inner, MIN_RADIUS_M))
+    walls = track.pit_wall_pieces()
+    for k, sfx in enumerate(("l", "r")):
+        out[:, B_PIT + 2 * k] = np.where(walls[:, k], half, np.inf)
+        out[:, B_PIT + 2 * k + 1] = np.where(walls[:, k], half + p[:, COL[f"border_w_{sfx}"]], -np.inf)
     return out
 
 
@@ -421,7 +444,9 @@ def _track_bounds(track, bar: np.ndarray) -> tuple[float, float]:
 
 def _wall_space(track):
     """pymunk space with the barrier polylines as static segments, one static body per barrier
-    material. Returns (space, material bodies, surface index of each material body)."""
+    material, and the pit walls (`Track.pit_wall_quads`) as the static segments of their
+    outlines, neighbours set, on a body of their own (material MAT_PIT_WALL, last). Returns (space, material bodies, surface index of
+    each material body or MAT_PIT_WALL)."""
     space = pymunk.Space()
     space.collision_bias = 1.0          # no positional bias: pymunk's bodies never move
     space.collision_persistence = 1     # arbiters left after a step are the current contacts
@@ -448,8 +473,38 @@ def _wall_space(track):
             shapes.extend(pymunk.Segment(body, a, b, 0.0)        # elasticity, friction: 0 (unused)
                           for a, b in zip(map(tuple, pts[sel].tolist()), map(tuple, ends[sel].tolist())))
     mat_ids = sorted(bodies)
+    chains = _pit_wall_chains(track.pit_wall_quads()[0])
+    if chains:                          # the pit walls: one more static body, the last
+        mat_ids.append(MAT_PIT_WALL)
+        body = bodies[MAT_PIT_WALL] = pymunk.Body(body_type=pymunk.Body.STATIC)
+        for pts in chains:              # closed outline; neighbours set: no ghost hits at joints
+            segs = [pymunk.Segment(body, a, b, 0.0) for a, b in zip(pts, pts[1:] + pts[:1])]
+            for k, seg in enumerate(segs):
+                seg.set_neighbors(segs[k - 1].a, segs[(k + 1) % len(segs)].b)
+            shapes.extend(segs)
     space.add(*[bodies[m] for m in mat_ids], *shapes)
     return space, [bodies[m] for m in mat_ids], mat_ids
+
+
+def _pit_wall_chains(quads: np.ndarray) -> list[list[tuple]]:
+    """The outlines of the pit walls: consecutive quads (`Track.pit_wall_quads`) that share an
+    edge (to JOIN_M; a wall across the start line included) make one wall, outlined as TORCS
+    builds it (inner face, end cap, outer face back, start cap). Returns one closed point list
+    per wall."""
+    w = quads.shape[0]
+    if w == 0:
+        return []
+    joined = np.abs(quads[:, :2] - np.roll(quads, 1, axis=0)[:, 3:1:-1]).max(axis=(1, 2)) < JOIN_M
+    first = int(np.argmin(joined)) if not joined.all() else 0      # a wall starts here
+    order = (first + np.arange(w)) % w
+    starts = [k for k in range(w) if k == 0 or not joined[order[k]]]
+    chains = []
+    for a, b in zip(starts, starts[1:] + [w]):
+        run = quads[order[a:b]]
+        inner = np.vstack([run[:, 0], run[-1:, 3]])
+        outer = np.vstack([run[:, 1], run[-1:, 2]])
+        chains.append(list(map(tuple, np.vstack([inner, outer[::-1]]).tolist())))
+    return chains
 
 
 class _SpacePool:
@@ -489,12 +544,17 @@ def _give_back(pool: _SpacePool, lease: list, bodies, shapes, member) -> None:
 
 
 def _material_table(track, mat_ids, wall_friction, rebound) -> np.ndarray:
-    """(M, 3) friction, rebound, damage factor of each wall material body."""
-    out = np.zeros((max(1, len(mat_ids)), 3))
+    """(M, 4) friction, rebound, damage factor and kind (0 barrier, 1 pit wall) of each wall
+    material body. A pit wall's row is (0, 1, 1, 1): TORCS's pit-wall rule ignores the surface
+    (an elastic impulse, `contact_kernels._pit_wall_response`)."""
+    out = np.zeros((max(1, len(mat_ids)), 4))
     for k, m in enumerate(mat_ids):
+        if m == MAT_PIT_WALL:
+            out[k] = (0.0, 1.0, 1.0, 1.0)
+            continue
         srf = track.surfaces[m]
         out[k] = (srf.friction if wall_friction is None else wall_friction,
-                  srf.rebound if rebound is None else rebound, srf.dammage)
+                  srf.rebound if rebound is None else rebound, srf.dammage, 0.0)
     return out
 
 

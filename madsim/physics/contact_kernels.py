@@ -25,6 +25,12 @@ CAR_DAMAGE_PER_NS = 0.1     # damage points per N s of impulse
 FRONTAL_FACTOR = 1.5        # car-car damage factor for hits within +-60 deg of the nose
 FRONTAL_HALF_ANGLE = math.pi / 3.0
 SKILL_SEMI_PRO = 0.8        # TORCS damage skill factor (rookie 0, amateur 0.5, semi-pro 0.8, pro 1)
+PIT_WALL_E = 1.0            # pit walls: restitution of the impulse (elastic)
+PIT_WALL_ROT_K = 0.5        # pit walls: share of the impulse's yaw-rate change that is applied
+PIT_WALL_DAMAGE_K = 2e-5    # pit walls: damage = CAR_DAMAGE_PER_NS x this x j^2 (x frontal, skill)
+MAT_PIT_WALL = -1           # "surface index" of the pit walls' material body
+PIT_CAP_COS = 0.7           # a pit-wall contact normal this close to the track direction is a cap's
+PIT_CAP_REACH_M = 0.5       # ... and is kept only this close to an end of the wall
 
 # --- solver tuning ----------------------------------------------------------------------------
 SLOP_M = 1e-3               # extra separation beyond the measured penetration
@@ -40,10 +46,11 @@ WINDOW_SLACK_M = 5.0        # extra barrier look-ahead that lets a wall clearanc
 SETTLE_ITERS = 16            # position-only passes over what is left after the pymunk contacts
 IDLE_CALLS = 50             # consultations a car stays in the pymunk space after its last contact
 
+B_PIT = 5                   # first pit-wall column of the per-piece barrier table
 # columns of the per-car constant table
 C_HL, C_HW, C_RAD, C_MASS, C_IZZ, C_GAIN, C_WIN = range(7)
 # entries of the scalar parameter array
-(P_LENGTH, P_MOVE_CAP, P_RMAX, P_E_CAR, P_SKILL, P_STRETCH, P_CHORD2) = range(7)
+(P_LENGTH, P_MOVE_CAP, P_RMAX, P_E_CAR, P_SKILL, P_STRETCH, P_CHORD2, P_PIT) = range(8)
 
 
 # --- compiled kernels ------------------------------------------------------------------------------
@@ -68,11 +75,12 @@ def _heading(geo, i, q):
 
 
 @numba.njit(cache=True)
-def _barrier_min(geo, bar, i, q, reach):
-    """Smallest (left, right) barrier offset and smallest inner barrier radius over s in
-    [s(i, q) - reach, s(i, q) + reach]."""
+def _barrier_min(geo, bar, i, q, reach, pit, n, lat):
+    """Smallest (left, right) barrier offset, smallest inner barrier radius over s in
+    [s(i, q) - reach, s(i, q) + reach] and, if `pit`, the smallest lateral gap (m) between the
+    span [n - lat, n + lat] and a pit wall's strip on a piece in that window (inf if none)."""
     npieces = geo.shape[0]
-    bl, br, rc = np.inf, np.inf, np.inf
+    bl, br, rc, gap = np.inf, np.inf, np.inf, np.inf
     for direction in (-1, 1):
         j = i
         lo = q - reach if direction < 0 else q
@@ -85,6 +93,9 @@ def _barrier_min(geo, bar, i, q, reach):
                 bl = min(bl, bar[j, 0] + u * (bar[j, 1] - bar[j, 0]))
                 br = min(br, bar[j, 2] + u * (bar[j, 3] - bar[j, 2]))
             rc = min(rc, bar[j, 4])
+            if pit:
+                gap = min(gap, max(bar[j, B_PIT] - (n + lat), (n - lat) - bar[j, B_PIT + 1]),
+                          max(bar[j, B_PIT + 2] - (lat - n), (-n - lat) - bar[j, B_PIT + 3]))
             if direction < 0:
                 if lo >= 0.0:
                     break
@@ -97,22 +108,23 @@ def _barrier_min(geo, bar, i, q, reach):
                 hi -= ln
                 lo = 0.0
                 j = j + 1 if j < npieces - 1 else 0
-    return bl, br, rc
+    return bl, br, rc, gap
 
 
 @numba.njit(cache=True)
 def _wall_margin(geo, bar, cars, prm, i, x, y, yaw, hint):
-    """Conservative clearance (m) between car i's box and the nearest barrier line, minus what
-    pymunk may already call a contact: the lateral extent of the box at the car's track
-    position against the narrowest barrier offset within reach, less the bulge of a curved
-    barrier over the box (rad^2 / 2 r), the polylines' chord error (chord^2 / 8 r) and
-    WALL_REACH_M. <= 0: consult pymunk."""
+    """Conservative clearance (m) between car i's box and the nearest barrier line or pit wall,
+    minus what pymunk may already call a contact: the lateral extent of the box at the car's
+    track position against the narrowest barrier offset within reach (and the lateral gap to
+    the strip of any pit wall within reach, whichever side of it the car is on), less the bulge
+    of a curved barrier over the box (rad^2 / 2 r), the polylines' chord error (chord^2 / 8 r)
+    and WALL_REACH_M. <= 0: consult pymunk."""
     p, q, n = locate_from(geo, hint, x, y)
     psi = yaw - _heading(geo, p, q)
     lat = cars[i, C_HL] * abs(math.sin(psi)) + cars[i, C_HW] * abs(math.cos(psi))
-    bl, br, rc = _barrier_min(geo, bar, p, q, cars[i, C_WIN])
+    bl, br, rc, gap = _barrier_min(geo, bar, p, q, cars[i, C_WIN], prm[P_PIT] != 0.0, n, lat)
     bulge = (cars[i, C_RAD] ** 2 / 2.0 + prm[P_CHORD2] / 8.0) / rc
-    return min(bl - (n + lat), br - (lat - n)) - bulge - WALL_REACH_M
+    return min(bl - (n + lat), br - (lat - n), gap) - bulge - WALL_REACH_M
 
 
 @numba.njit(cache=True)
@@ -386,6 +398,47 @@ def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
 
 
 @numba.njit(cache=True)
+def _pit_cap_ok(geo, bar, hint, px, py, nx, ny):
+    """False for a pit-wall contact at (px, py) whose normal (nx, ny) runs along the track
+    (|n . t| > PIT_CAP_COS) with no end of that wall within PIT_CAP_REACH_M of the point: pymunk
+    hitting the seam between two segments of one face, not an end cap."""
+    p, q, n = locate_from(geo, hint, px, py)
+    a = _heading(geo, p, q)
+    if abs(nx * math.cos(a) + ny * math.sin(a)) <= PIT_CAP_COS:
+        return True
+    col = B_PIT if n >= 0.0 else B_PIT + 2
+    last = geo.shape[0] - 1
+    if not math.isfinite(bar[p, col]):
+        return True
+    if q < PIT_CAP_REACH_M and not math.isfinite(bar[p - 1 if p > 0 else last, col]):
+        return True
+    return q > geo[p, GEO_LEN] - PIT_CAP_REACH_M and not math.isfinite(bar[p + 1 if p < last else 0, col])
+
+
+@numba.njit(cache=True)
+def _pit_wall_response(i, nx, ny, px, py, x, y, yaw, vx, vy, w, cars, prm, damage):
+    """TORCS pit-wall rule (car spec 4.12) for car i at point (px, py), wall normal (nx, ny)
+    pointing away from the wall, if the point moves into the wall: the impulse of an elastic
+    hit on an immovable wall, j = -(1 + e) vn / (1/m + (r x n)^2 / I), on the velocity in full
+    and on the yaw rate times PIT_WALL_ROT_K (|r| <= CAR_YAW_MAX after), and damage
+    CAR_DAMAGE_PER_NS x PIT_WALL_DAMAGE_K x j^2 (x FRONTAL_FACTOR within +-60 deg of the
+    nose) x skill."""
+    rx, ry = px - x[i], py - y[i]
+    vn = (vx[i] - w[i] * ry) * nx + (vy[i] + w[i] * rx) * ny
+    if vn >= 0.0:
+        return
+    cr = rx * ny - ry * nx
+    jn = -(1.0 + PIT_WALL_E) * vn / (1.0 / cars[i, C_MASS] + cr * cr / cars[i, C_IZZ])
+    vx[i] += jn * nx / cars[i, C_MASS]
+    vy[i] += jn * ny / cars[i, C_MASS]
+    w[i] = min(max(w[i] + PIT_WALL_ROT_K * jn * cr / cars[i, C_IZZ], -CAR_YAW_MAX), CAR_YAW_MAX)
+    c, s = math.cos(yaw[i]), math.sin(yaw[i])
+    ang = math.atan2(-rx * s + ry * c, rx * c + ry * s)
+    factor = FRONTAL_FACTOR if abs(ang) < FRONTAL_HALF_ANGLE else 1.0
+    damage[i] += CAR_DAMAGE_PER_NS * PIT_WALL_DAMAGE_K * jn * jn * factor * prm[P_SKILL]
+
+
+@numba.njit(cache=True)
 def _car_response(i, j, nx, ny, px, py, x, y, yaw, vx, vy, w, cars, prm, damage):
     """Car-car impulse at (px, py) along (nx, ny) (pushing i away from j) if the points
     approach. Returns the impulse, N s (0 when separating)."""
@@ -458,9 +511,12 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
             px, py = f[off + 5 * best], f[off + 1 + 5 * best]
             if cnt == 2 and abs(f[6] - f[11]) < 1e-9:   # flat contact: middle of the two points
                 px, py = 0.5 * (f[off] + f[off + 5]), 0.5 * (f[off + 1] + f[off + 6])
-            excess, sx, sy = _point_excess(geo, bar, piece[i], px, py)
-            if excess < -OTHER_LEVEL_M or sgn * nx * sx + sgn * ny * sy <= 0.0:
-                continue     # another level's wall, or seen from behind: the projection handles it
+            if mat[m, 3] == 0.0:      # a barrier (pit walls are hit from either side)
+                excess, sx, sy = _point_excess(geo, bar, piece[i], px, py)
+                if excess < -OTHER_LEVEL_M or sgn * nx * sx + sgn * ny * sy <= 0.0:
+                    continue     # another level's wall, or seen from behind: the projection handles it
+            elif not _pit_cap_ok(geo, bar, piece[i], px, py, sgn * nx, sgn * ny):
+                continue         # a seam between two segments of one pit wall's face
             ri[nrec], rk[nrec], ro[nrec] = i, 0, m
             rf[nrec, 0], rf[nrec, 1], rf[nrec, 2], rf[nrec, 3], rf[nrec, 4] = sgn * nx, sgn * ny, px, py, dmax
         else:
@@ -501,8 +557,12 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
             if need > 0.0:
                 pushx += need * rf[g, 0]
                 pushy += need * rf[g, 1]
-            _wall_response(i, rf[g, 0], rf[g, 1], rf[g, 2], rf[g, 3], mat[ro[g]], x, y, vx, vy, w,
-                               prm, damage)
+            if mat[ro[g], 3] == 0.0:
+                _wall_response(i, rf[g, 0], rf[g, 1], rf[g, 2], rf[g, 3], mat[ro[g]], x, y, vx, vy,
+                               w, prm, damage)
+            else:
+                _pit_wall_response(i, rf[g, 0], rf[g, 1], rf[g, 2], rf[g, 3], x, y, yaw, vx, vy,
+                                   w, cars, prm, damage)
         norm = math.sqrt(pushx * pushx + pushy * pushy)
         if norm > 0.0:
             x[i] += pushx * (1.0 + SLOP_M / norm)

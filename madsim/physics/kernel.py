@@ -18,8 +18,13 @@ Low-speed stability (spec 5.2 step 6), documented choice: both slip denominators
 `w += dt (T - R (Ft - dFt/d(wR) dvt)) / (I + dt R^2 dFt/d(wR))` (slope clamped at >= 0, dvt the
 wheel-speed change predicted from the last step's body acceleration), which is stable for any
 spin stiffness and leaves steady states unchanged (for the two wheels of an axle, coupled by
-their differential, a 2 x 2 linear step). TORCS's two-sample force/spin averages are therefore
-not applied (docs/physics.md: what they would change).
+their differential, a 2 x 2 linear step), at or below SPIN_AVG_SPEED = 3 m/s of car speed.
+Above it the kernel does what TORCS 1.3.7's wheel.cpp does: an explicit spin step, then each
+wheel's spin and each tyre force (Ft, Fn, in N) is replaced by the mean of its new raw value
+and the last raw one (RELAXATION2(x, prex, 50)). The last raw spins and forces are state
+columns, tracked at every speed, so the switch is smooth. A steady torque then spins a wheel
+up as if it were 1.5 x heavier (u(n+1) = (u(n) + u(n-1)) / 2 + dw grows by 2 dw / 3 a step).
+Below 3 m/s the explicit step with the regularised slip would chatter (docs/physics.md).
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
     C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_LAT_F, C_LAT_R, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
     C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_REACT, C_RIDE0,
-    C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TICK, C_TOP, C_TR, C_VISC,
+    C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_TR, C_VISC,
     C_VISC_MAX, C_W0, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
     FLAG_START, P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV,
@@ -43,7 +48,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
     S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ,
     S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_SPIN,
-    S_X, S_Y, S_YAW, S_Z, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
+    S_X, S_Y, S_YAW, S_Z, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
     U_GEAR, U_STEER,
 )
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
@@ -53,6 +58,9 @@ G = 9.80665          # m/s^2, as TORCS
 V_REG = 2.0          # m/s, slip denominator floor (see module docstring)
 SLIP_MAX = 1.5       # TORCS's slip clamp
 YAW_RATE_MAX = 9.0   # rad/s, TORCS's cap
+SPIN_AVG_SPEED = 3.0
+"""m/s: above this car speed the wheel spins take TORCS's explicit step and the spins and tyre
+forces its two-sample averages (module docstring); at or below it, the implicit step."""
 PARALLEL_MIN_CARS = 64   # below this many cars the serial loop is faster than threads
 
 _JIT = {"cache": True, "error_model": "numpy"}
@@ -504,6 +512,9 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     wdown_f, wdown_r = cp[i, C_WINGDOWN_F], cp[i, C_WINGDOWN_R]
     y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]
     tf_share, tr_share = cp[i, C_LAT_F], cp[i, C_LAT_R]     # roll centres, roll stiffness
+    toe0, toe1 = cp[i, C_TOE], cp[i, C_TOE + 1]               # static toe (spec 4.5), rad
+    cd2, sd2 = math.cos(cp[i, C_TOE + 2]), math.sin(cp[i, C_TOE + 2])
+    cd3, sd3 = math.cos(cp[i, C_TOE + 3]), math.sin(cp[i, C_TOE + 3])
 
     # state into locals
     x, y, yaw, r = st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R]
@@ -513,6 +524,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     gear, shift_t, d = st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER]
     fuel = st[i, S_FUEL]
     fz0, fz1, fz2, fz3 = st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3]
+    pw0, pw1 = st[i, S_SPINRAW], st[i, S_SPINRAW + 1]          # last raw spins and tyre forces
+    pw2, pw3 = st[i, S_SPINRAW + 2], st[i, S_SPINRAW + 3]
+    pt0, pt1, pt2, pt3 = st[i, S_FTRAW], st[i, S_FTRAW + 1], st[i, S_FTRAW + 2], st[i, S_FTRAW + 3]
+    pn0, pn1, pn2, pn3 = st[i, S_FNRAW], st[i, S_FNRAW + 1], st[i, S_FNRAW + 2], st[i, S_FNRAW + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
     d_done = math.nan
     cd0 = cd1 = 1.0
@@ -521,14 +536,15 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
 
     for _ in range(nsub):
         # --- steering: rate-limited towards steer * lock; Ackermann (spec 4.2): the inner
-        # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|))
+        # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|)); each wheel's
+        # heading adds its static toe
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
             d_done = d
             outer = math.copysign(math.atan(wb * math.tan(abs(d)) / (wb + track_f * math.tan(abs(d)))), d)
             d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
-            cd0, sd0 = math.cos(d0), math.sin(d0)
-            cd1, sd1 = math.cos(d1), math.sin(d1)
+            cd0, sd0 = math.cos(d0 + toe0), math.sin(d0 + toe0)     # heading = steer + toe
+            cd1, sd1 = math.cos(d1 + toe1), math.sin(d1 + toe1)
 
         # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
         # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
@@ -623,8 +639,21 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # (body velocity + yaw rate x wheel position), forces by its load scale
         ft0, fn0, dft0 = _tyre(vx - y0 * r, vy + a * r, cd0, sd0, w0 * rad0, bf, cf, ef, skid)
         ft1, fn1, dft1 = _tyre(vx - y1 * r, vy + a * r, cd1, sd1, w1 * rad1, bf, cf, ef, skid)
-        ft2, fn2, dft2 = _tyre(vx - y2 * r, vy - b * r, 1.0, 0.0, w2 * rad2, br, cr, er, skid)
-        ft3, fn3, dft3 = _tyre(vx - y3 * r, vy - b * r, 1.0, 0.0, w3 * rad3, br, cr, er, skid)
+        ft2, fn2, dft2 = _tyre(vx - y2 * r, vy - b * r, cd2, sd2, w2 * rad2, br, cr, er, skid)
+        ft3, fn3, dft3 = _tyre(vx - y3 * r, vy - b * r, cd3, sd3, w3 * rad3, br, cr, er, skid)
+        # forces in N; above SPIN_AVG_SPEED each is the mean of its raw value now and the last
+        # one (TORCS's SimWheelUpdateForce: RELAXATION2(Ft, preFt, 50), same for Fn)
+        fast = v > SPIN_AVG_SPEED
+        gt0, gt1, gt2, gt3 = ft0 * k0, ft1 * k1, ft2 * k2, ft3 * k3
+        gn0, gn1, gn2, gn3 = fn0 * k0, fn1 * k1, fn2 * k2, fn3 * k3
+        if fast:
+            at0, at1, at2, at3 = 0.5 * (gt0 + pt0), 0.5 * (gt1 + pt1), 0.5 * (gt2 + pt2), 0.5 * (gt3 + pt3)
+            an0, an1, an2, an3 = 0.5 * (gn0 + pn0), 0.5 * (gn1 + pn1), 0.5 * (gn2 + pn2), 0.5 * (gn3 + pn3)
+        else:
+            at0, at1, at2, at3 = gt0, gt1, gt2, gt3
+            an0, an1, an2, an3 = gn0, gn1, gn2, gn3
+        pt0, pt1, pt2, pt3 = gt0, gt1, gt2, gt3
+        pn0, pn1, pn2, pn3 = gn0, gn1, gn2, gn3
 
         # --- 4WD centre viscous coupler (spec 4.10, TORCS's rule) on the axles' mean spins: the
         # front axle gets the min torque bias while it turns at least as fast as the rear, more
@@ -639,8 +668,9 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             else:
                 share = share_min + (1.0 - math.exp(-visc * (wr - wf))) * share_span
 
-        # --- wheel spin (spec 4.10 inertias; implicit step; brakes stop but never reverse),
-        # each axle through its differential
+        # --- wheel spin (spec 4.10 inertias; brakes stop but never reverse), each axle through
+        # its differential: above SPIN_AVG_SPEED TORCS's explicit step on the averaged tyre
+        # torques, else the implicit step
         if coupled:
             i_f = 0.5 * (cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F])
             i_r = 0.5 * (cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R])
@@ -650,16 +680,25 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # linearised in the slip velocity vt - wR: the wheel's own change and the body's
         # (predicted from the last step's acceleration) both enter, so a steadily accelerating
         # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)
-        dvx = (ax_kin + r * vy) * dt
-        dvy = (ay_kin - r * vx) * dt
-        dvt0, dvt1 = dvx * cd0 + dvy * sd0, dvx * cd1 + dvy * sd1
-        rk0, rk1, rk2, rk3 = k0 * rad0, k1 * rad1, k2 * rad2, k3 * rad3
-        w0, w1 = _axle_spin(cp, i, 0, t_drive * share if driven_f else 0.0, feedback, w0, w1,
-                            rk0 * (ft0 - dft0 * dvt0), rk1 * (ft1 - dft1 * dvt1),
-                            rk0 * dft0 * rad0, rk1 * dft1 * rad1, i_f, i_f, tb0, tb1, dt)
-        w2, w3 = _axle_spin(cp, i, 1, t_drive * (1.0 - share) if driven_r else 0.0, feedback, w2, w3,
-                            rk2 * (ft2 - dft2 * dvx), rk3 * (ft3 - dft3 * dvx),
-                            rk2 * dft2 * rad2, rk3 * dft3 * rad3, i_r, i_r, tb2, tb3, dt)
+        drive_f = t_drive * share if driven_f else 0.0
+        drive_r = t_drive * (1.0 - share) if driven_r else 0.0
+        if fast:
+            w0, w1 = _axle_spin(cp, i, 0, drive_f, feedback, w0, w1, rad0 * at0, rad1 * at1,
+                                0.0, 0.0, i_f, i_f, tb0, tb1, dt)
+            w2, w3 = _axle_spin(cp, i, 1, drive_r, feedback, w2, w3, rad2 * at2, rad3 * at3,
+                                0.0, 0.0, i_r, i_r, tb2, tb3, dt)
+        else:
+            dvx = (ax_kin + r * vy) * dt
+            dvy = (ay_kin - r * vx) * dt
+            dvt0, dvt1 = dvx * cd0 + dvy * sd0, dvx * cd1 + dvy * sd1
+            rk0, rk1, rk2, rk3 = k0 * rad0, k1 * rad1, k2 * rad2, k3 * rad3
+            w0, w1 = _axle_spin(cp, i, 0, drive_f, feedback, w0, w1,
+                                rk0 * (ft0 - dft0 * dvt0), rk1 * (ft1 - dft1 * dvt1),
+                                rk0 * dft0 * rad0, rk1 * dft1 * rad1, i_f, i_f, tb0, tb1, dt)
+            w2, w3 = _axle_spin(cp, i, 1, drive_r, feedback, w2, w3,
+                                rk2 * (ft2 - dft2 * (dvx * cd2 + dvy * sd2)),
+                                rk3 * (ft3 - dft3 * (dvx * cd3 + dvy * sd3)),
+                                rk2 * dft2 * rad2, rk3 * dft3 * rad3, i_r, i_r, tb2, tb3, dt)
 
         # --- engine speed (spec 4.10): follows the driven wheels through the clutch, else free
         we_free = we + teng / ieng * dt
@@ -685,14 +724,23 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         else:
             we = we_free
         we = min(max(we, tick), maxi)
+        # the spins: above SPIN_AVG_SPEED the mean of the raw new one and the last raw one
+        # (TORCS's SimWheelUpdateRotation: RELAXATION2(spinVel, prespinVel, 50))
+        if fast:
+            w0, pw0 = 0.5 * (w0 + pw0), w0
+            w1, pw1 = 0.5 * (w1 + pw1), w1
+            w2, pw2 = 0.5 * (w2 + pw2), w2
+            w3, pw3 = 0.5 * (w3 + pw3), w3
+        else:
+            pw0, pw1, pw2, pw3 = w0, w1, w2, w3
         if fuel_on:
             fuel = max(fuel - abs(teng) * we * cp[i, C_FUELCONS] * 1e-7 * dt, 0.0)
 
         # --- body forces (body frame): tyres, aero drag, wings, gravity along the road gradient
-        fx0, fx1 = (ft0 * cd0 - fn0 * sd0) * k0, (ft1 * cd1 - fn1 * sd1) * k1
-        fx2, fx3 = ft2 * k2, ft3 * k3
-        fy_f = (ft0 * sd0 + fn0 * cd0) * k0 + (ft1 * sd1 + fn1 * cd1) * k1
-        fy_r = fn2 * k2 + fn3 * k3
+        fx0, fx1 = at0 * cd0 - an0 * sd0, at1 * cd1 - an1 * sd1
+        fx2, fx3 = at2 * cd2 - an2 * sd2, at3 * cd3 - an3 * sd3
+        fy_f = (at0 * sd0 + an0 * cd0) + (at1 * sd1 + an1 * cd1)
+        fy_r = (at2 * sd2 + an2 * cd2) + (at3 * sd3 + an3 * cd3)
         drag = -math.copysign(scx2 * vx2, vx)
         if vx > 0.0:
             drag += wing_drag * vx2
@@ -731,5 +779,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_GEAR], st[i, S_SHIFT], st[i, S_STEER] = gear, shift_t, d
     st[i, S_FUEL] = fuel
     st[i, S_FZ], st[i, S_FZ + 1], st[i, S_FZ + 2], st[i, S_FZ + 3] = fz0, fz1, fz2, fz3
+    st[i, S_SPINRAW], st[i, S_SPINRAW + 1], st[i, S_SPINRAW + 2], st[i, S_SPINRAW + 3] = pw0, pw1, pw2, pw3
+    st[i, S_FTRAW], st[i, S_FTRAW + 1], st[i, S_FTRAW + 2], st[i, S_FTRAW + 3] = pt0, pt1, pt2, pt3
+    st[i, S_FNRAW], st[i, S_FNRAW + 1], st[i, S_FNRAW + 2], st[i, S_FNRAW + 3] = pn0, pn1, pn2, pn3
     st[i, S_Z] = st[i, S_ROADZ] + h + ride_at_cg(st, i, cp)
     return v2_max, r_max

@@ -23,7 +23,9 @@ STATE_COLUMNS = _enum(
     "s n piece laps back_crossings lap_start_time cur_lap_time last_lap_time best_lap_time "
     "dist_raced time "
     "fz_fr fz_fl fz_rr fz_rl fric_fr fric_fl fric_rr fric_rl roll_fr roll_fl roll_rr roll_rl "
-    "grad_x grad_y track_heading road_z drag_factor"
+    "grad_x grad_y track_heading road_z drag_factor "
+    "spin_raw_fr spin_raw_fl spin_raw_rr spin_raw_rl ft_raw_fr ft_raw_fl ft_raw_rr ft_raw_rl "
+    "fn_raw_fr fn_raw_fl fn_raw_rr fn_raw_rl"
 )
 STATE_DOC = {
     "x": "CG x, global frame, m", "y": "CG y, m",
@@ -54,6 +56,12 @@ STATE_DOC = {
     "track_heading": "centre-line tangent heading at the CG's projection, rad",
     "road_z": "road height under the CG, m",
     "drag_factor": "slipstream factor on the body drag's airspeed (1: free air), set once per tick",
+    "spin_raw_fr": "last raw (before TORCS's two-sample average) wheel spin front right, rad/s",
+    "spin_raw_fl": "rad/s", "spin_raw_rr": "rad/s", "spin_raw_rl": "rad/s",
+    "ft_raw_fr": "last raw longitudinal tyre force front right (wheel frame, before the average), N",
+    "ft_raw_fl": "N", "ft_raw_rr": "N", "ft_raw_rl": "N",
+    "fn_raw_fr": "last raw lateral tyre force front right (wheel frame, before the average), N",
+    "fn_raw_fl": "N", "fn_raw_rr": "N", "fn_raw_rl": "N",
 }
 S = {name: i for i, name in enumerate(STATE_COLUMNS)}
 (S_X, S_Y, S_Z, S_YAW, S_VXG, S_VYG, S_R, S_VX, S_VY, S_AX, S_AY,
@@ -66,6 +74,9 @@ S_FRIC = S["fric_fr"]      # 4 frictions
 S_ROLL = S["roll_fr"]      # 4 rolling resistances
 S_GX, S_GY, S_THEAD, S_ROADZ = S["grad_x"], S["grad_y"], S["track_heading"], S["road_z"]
 S_DRAGK = S["drag_factor"]
+S_SPINRAW = S["spin_raw_fr"]   # 4 last raw spins (TORCS's prespinVel), wheel order
+S_FTRAW = S["ft_raw_fr"]       # 4 last raw longitudinal tyre forces (TORCS's preFt)
+S_FNRAW = S["fn_raw_fr"]       # 4 last raw lateral tyre forces (TORCS's preFn)
 N_STATE = len(STATE_COLUMNS)
 
 # --- per-car constants (N, N_CAR) float64, built from CarSpec by `carparams.car_table` ---------
@@ -107,7 +118,8 @@ C_DLOCKB = C_DLOCK + 2    # limited slip: locking brake input torque, N m (spool
 C_DMIN = C_DLOCKB + 2     # viscous coupler: min torque bias of the right wheel
 C_DSPAN = C_DMIN + 2      # viscous coupler: max - min torque bias
 C_DVISC = C_DSPAN + 2     # viscous coupler: viscosity factor, 1/(rad/s)
-N_CAR = C_DVISC + 2
+C_TOE = C_DVISC + 2       # static toe per wheel (FR, FL, RR, RL), rad, left + (spec 4.5)
+N_CAR = C_TOE + 4
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,

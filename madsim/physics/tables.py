@@ -126,6 +126,7 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_RIDEMIN:L.C_RIDEMIN + 4] = c.susp_packers
     row[L.C_RIDEMAX:L.C_RIDEMAX + 4] = np.maximum(c.susp_course / np.maximum(c.susp_bellcrank, 1e-6), c.susp_packers)
     row[L.C_KB:L.C_KB + 4] = c.brake_kb
+    row[L.C_TOE:L.C_TOE + 4] = c.toe
     # overall ratios and drive inertias per gear slot (slot = gear + 1; slot 1 = neutral)
     share_i = 0.25 if c.drive_type == "4WD" else 0.5
     for gear in range(-1, c.top_gear + 1):

@@ -203,7 +203,7 @@ class World:
         st[rows, L.S_DRAGK] = 1.0
         st[rows, L.S_VXG], st[rows, L.S_VYG] = speed * np.cos(yaw), speed * np.sin(yaw)
         for k in range(4):
-            st[rows, L.S_SPIN + k] = speed / cp[rows, L.C_RAD + k]
+            st[rows, L.S_SPIN + k] = st[rows, L.S_SPINRAW + k] = speed / cp[rows, L.C_RAD + k]
         st[rows, L.S_GEAR] = g
         ratio = cp[rows, L.C_RATIO + g + 1]
         driven_w = np.where(cp[rows, L.C_DRIVEN_R] > 0, st[rows, L.S_SPIN + 2], st[rows, L.S_SPIN])

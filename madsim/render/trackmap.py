@@ -19,7 +19,8 @@ def _figure():
 
 
 def draw_track(ax, track: Track, *, marks_every_m: float = 500.0, label: bool = True) -> None:
-    """Draw road surface, edges, barriers, start line, direction and distance marks on `ax`."""
+    """Draw road surface, edges, barriers, pit walls, start line, direction and distance marks on
+    `ax`."""
     left, right = track.edge_polyline("left"), track.edge_polyline("right")
     bl, br = track.barrier_polyline("left"), track.barrier_polyline("right")
     road = np.concatenate([left, right[::-1]])
@@ -30,6 +31,12 @@ def draw_track(ax, track: Track, *, marks_every_m: float = 500.0, label: bool = 
     for barrier in (bl, br):
         closed = np.vstack([barrier, barrier[:1]])
         ax.plot(closed[:, 0], closed[:, 1], color="#c0392b", lw=0.6, alpha=0.7, zorder=2)
+    walls = track.pit_wall_quads()[0]          # solid pit walls, as the contact solver sees them
+    if walls.shape[0]:
+        from matplotlib.collections import PolyCollection
+
+        ax.add_collection(PolyCollection(walls, facecolors="#c0392b", edgecolors="#c0392b",
+                                         linewidths=0.3, zorder=3))
     # start line across the road, and an arrow along the driving direction
     x0, y0, _, h0 = (float(v) for v in track.pose(0.0, 0.0))
     half = track.width / 2

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from madsim.tracks import kernels, rays
-from madsim.tracks.build import COL, LEFT, RIGHT, STRAIGHT, BuildResult, Surface
+from madsim.tracks.build import COL, LEFT, RIGHT, STRAIGHT, STYLE_WALL, BuildResult, Surface
 
 SAMPLE_SPACING_M = 1.0
 GRID_CELL_M = 10.0
@@ -231,6 +231,44 @@ class Track:
         """Lateral distance from the centre line to the (left, right) barrier line at s, m."""
         br, sr, bl, sl = self.side_widths_at(s)
         return self.width / 2 + bl + sl, self.width / 2 + br + sr
+
+    def pit_wall_pieces(self) -> np.ndarray:
+        """(P, 2) bool, per piece (left, right): the border is a solid wall (track spec 6: a
+        border of style `wall`, width > 0, with a side beyond it: TORCS's pit walls)."""
+        p = self.pieces
+        out = np.zeros((p.shape[0], 2), dtype=bool)
+        for k, sfx in enumerate(("l", "r")):
+            out[:, k] = ((p[:, COL[f"border_style_{sfx}"]] == STYLE_WALL)
+                         & (p[:, COL[f"border_w_{sfx}"]] > 0.0)
+                         & ((p[:, COL[f"side_w0_{sfx}"]] > 0.0) | (p[:, COL[f"side_w1_{sfx}"]] > 0.0)))
+        return out
+
+    def pit_wall_quads(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The solid walls of `pit_wall_pieces` as convex quads over the border strip, a curved
+        piece cut at most SAMPLE_SPACING_M apart along the centre line: (W, 4, 2) corners (m;
+        inner start, outer start, outer end, inner end), (W,) piece index and (W,) side
+        (0 left, 1 right)."""
+        walls = self.pit_wall_pieces()
+        quads, pieces, sides = [], [], []
+        half = self.width / 2.0
+        for i, k in zip(*np.nonzero(walls)):
+            row = self.pieces[i]
+            ln = row[COL["length"]]
+            cuts = 1 if row[COL["kind"]] == STRAIGHT else max(1, math.ceil(ln / SAMPLE_SPACING_M))
+            s = row[COL["s0"]] + ln * np.linspace(0.0, 1.0, cuts + 1)
+            s[-1] = np.nextafter(s[-1], s[0])          # the piece's own end, not the next one's
+            sign = 1.0 if k == 0 else -1.0
+            outer = half + row[COL["border_w_l" if k == 0 else "border_w_r"]]
+            xi, yi, _, _ = self.pose(s, sign * half)
+            xo, yo, _, _ = self.pose(s, sign * outer)
+            q = np.stack([np.stack([xi[:-1], yi[:-1]], 1), np.stack([xo[:-1], yo[:-1]], 1),
+                          np.stack([xo[1:], yo[1:]], 1), np.stack([xi[1:], yi[1:]], 1)], axis=1)
+            quads.append(q)
+            pieces.append(np.full(cuts, i, dtype=np.int64))
+            sides.append(np.full(cuts, k, dtype=np.int64))
+        if not quads:
+            return np.zeros((0, 4, 2)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        return np.concatenate(quads), np.concatenate(pieces), np.concatenate(sides)
 
     def banking_at(self, s) -> np.ndarray:
         """Cross slope at s (rad; positive = left edge higher), linear inside a piece."""

@@ -1,9 +1,10 @@
 """The car kernel's speed work changes no bit: state hashes after N ticks equal the ones recorded
-from main's commit bb41c09 (the code the paper's experiment trainings ran on).
+from the kernel with TORCS's spin step and averages above 3 m/s and static toe (issue 12; before
+that, main's commit bb41c09).
 
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
-`_digests()` run with PYTHONPATH pointing at a copy of bb41c09 (`python
+`_digests()` run with PYTHONPATH pointing at that kernel (`python
 tests/physics/test_bit_identity.py`); a change of the physics that is meant to move
 trajectories updates them in the same commit and says so. Covered: one car following the line,
 six cars in contact on a 5 m street with random controls (gears, reverse, brakes), a 4WD car
@@ -24,11 +25,11 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "6bd84a515f28b46da4d852e53aef457a07fecd9902036bf5492d3621a60aeb4d",
-    "six_contact": "3a87f0d8a4b10d7ba1ebfd6ce1339eb65a817b9f95185cd7ba899a2f7f9272e6",
-    "four_wd": "41727067af9bbc3cd4f7fafab70c00bbda7b5f3a4174082c3ea47b1cd93c2f27",
-    "vec_traffic": "2f65b60b586fef27ffc0cbb8d989ff8f1c32294cc1dc34876ce386906ddd2957",
-    "env_ts": "2aefc587eb8185a0a1ba220abf65b8a5925f0c05cbb1f7aa9552996267510f67",
+    "one_car": "884484a74ad230b7ae70e43a47cebc5bccf3678de179af0b971dee8cf8a24a77",
+    "six_contact": "5d03aacd62bf88de90783d58f7776fdf01fb8695e0f4a5c7d8de9a3a9ef200a6",
+    "four_wd": "37cf4c7903e5f4374c69bba006ed587ca5c28982ccc348ea520c375ad33eaede",
+    "vec_traffic": "fb8b243f2a73db13a8a998e51d830ec21edde5b1992646fe4e6c9002db900f51",
+    "env_ts": "2e3e668ad6fe3d14bb7fdf9b331bf683224c5c81f43ca965a99f6debd3925abc",
 }
 
 

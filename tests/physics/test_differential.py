@@ -164,9 +164,11 @@ def test_driven_rear_axle_follows_its_differential_in_a_turn(ph, make_track, kin
         assert ratio == pytest.approx(open_ratio, rel=0.1)
     else:
         # clamped to 0.003 before each step; the step then lets each tyre pull its wheel back
-        # (the tyre torques are the ones of the spins before the clamp, as in TORCS): measured
-        # 0.0089 against 0.0195 open
-        assert ratio < 0.5 * open_ratio
+        # (the tyre torques are the ones of the spins before the clamp, as in TORCS), and above
+        # 3 m/s TORCS's spin average takes the mean with the last raw spin (itself from an
+        # unclamped tyre pull): measured 0.0130 against 0.0200 open (before the average 0.0089
+        # against 0.0195)
+        assert ratio < 0.75 * open_ratio
 
 
 def test_car_files_give_each_axle_its_differential(need_torcs):

@@ -20,6 +20,9 @@ from madsim.physics import layout as L
 
 
 def free_mass(car):
+    """Mass plus the wheels' rotating mass I/R^2, as below kernel.SPIN_AVG_SPEED (3 m/s): the
+    slope tests roll at walking pace, where the spin takes the implicit step (above it TORCS's
+    spin average makes the wheels count 1.5 x, test_longitudinal.py)."""
     i_wheel = car.wheel_inertia + np.repeat(car.axle_inertia, 2) / 2.0
     return car.mass_total + float(np.sum(i_wheel / car.wheel_radius ** 2))
 

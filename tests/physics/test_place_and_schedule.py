@@ -75,6 +75,22 @@ def test_substeps_advance_that_many_sub_steps(road, sedan):
         a.step(u, 0)
 
 
+@pytest.mark.parametrize("speed", [2.9, 20.0])
+def test_substeps_agree_across_the_spin_average(road, sedan, speed):
+    # above kernel.SPIN_AVG_SPEED (3 m/s) the spins and tyre forces are two-sample averages
+    # whose last raw values are state columns: one call of n sub-steps equals n calls of one,
+    # also across the switch from the implicit step (2.9 m/s, accelerating through 3 m/s)
+    a, b = make(road, [sedan]), make(road, [sedan])
+    for w in (a, b):
+        w.place(0, 50.0, speed=speed, gear=1)
+    u = np.array([[0.3, 1.0, 0.0, 1, 0.0]])
+    a.step(u, 60)
+    for _ in range(60):
+        b.step(u, 1)
+    assert a.vx[0] > 3.0
+    np.testing.assert_array_equal(a.state, b.state)
+
+
 def test_torcs_clock_calls_every_20_or_22_ms_and_settles():
     c = TorcsClock()
     assert c.time == pytest.approx(0.018, abs=1e-12)     # TORCS's first racing message

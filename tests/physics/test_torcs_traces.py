@@ -47,10 +47,14 @@ def test_torcs_clock_gives_every_message_time_of_a_trace(fidelity):
 
 
 @pytest.mark.parametrize("name, t100_pct, v10_pct, spin_pct", [
-    # 4WD: viscous centre differential and the torque fed back twice (issue 12); before: -13.5 / +8.2 / 6.2
-    ("e-track-2__155-DTM__full", 4.0, 1.5, 2.0),
-    ("e-track-2__car3-trb1__full", 1.0, 0.5, 2.0),
-    ("e-track-2__baja-bug__full", 1.5, 0.5, 2.0),
+    # measured with TORCS's explicit spin step and two-sample averages above 3 m/s (issue 12):
+    # 0-100 km/h error, speed at 10 s, per-wheel spin error in %; the issue's target is 3 % for
+    # the first two, 5 % for the spins
+    # 4WD: viscous centre differential and the torque fed back twice; -2.3 / +0.4 / 0.4
+    # (before those: -13.5 / +8.2 / 6.2; before the averages -3.6 / +1.0 / 0.7)
+    ("e-track-2__155-DTM__full", 3.0, 1.0, 1.0),
+    ("e-track-2__car3-trb1__full", 1.5, 0.5, 1.0),     # +0.8 / -0.2 / 0.6 (was -0.3 / -0.1 / 0.8)
+    ("e-track-2__baja-bug__full", 3.0, 1.5, 2.0),      # +2.0 / -0.9 / 1.2 (was +0.6 / +0.0 / 1.0)
 ])
 def test_straight_line_runs(fidelity, name, t100_pct, v10_pct, spin_pct):
     _, r = replay(fidelity, name)
