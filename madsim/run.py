@@ -193,12 +193,12 @@ def run(config=None, *, episodes: int = 1, driver: str = "pid", seed: int = 0, v
                     bar.update(ticks)
                     sim_s = (core.tick - sim0) * TICK_S
                     if writer is not None and sim_s >= next_frame_s:
-                        frame = view.render(core)
+                        frame = view.render(core.view_state())
                         while sim_s >= next_frame_s:     # a step longer than a frame: the video keeps time
                             writer.append(frame)
                             next_frame_s += frame_every_s
                     if window is not None:
-                        window.render(core)
+                        window.render(core.view_state())
                         closed = window.window_closed
                         if closed:
                             break
@@ -283,9 +283,7 @@ def _need_display() -> None:
 
 
 def _kinds(plan) -> list[str]:
-    from madsim.render.scene import kinds_of_plan
-
-    return list(kinds_of_plan(plan))
+    return list(plan.kinds)
 
 
 def _record(stats: list[CarStats], core, ticks: int) -> None:

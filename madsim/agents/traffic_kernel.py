@@ -35,6 +35,7 @@ from madsim.agents.pid import (
     py_max,
     py_min,
 )
+from madsim.physics.kernel import NO_REFCOUNT
 from madsim.physics.sensors import O_ANGLE, O_CURLAP, O_DFS, O_DRACED, O_OPP, O_SX, O_TPOS, O_TRACK
 
 # kinds
@@ -289,7 +290,7 @@ def _drive(sens, S, P, ctrl, r, lane, speed):
     ctrl[r, 0], ctrl[r, 1], ctrl[r, 2], ctrl[r, 3] = steer, accel, brake, gear
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def traffic_tick(sens, ctrl, rows, kind, S, P, lanes, rand):
     """Controls of the coming tick for `rows` from their latest sensors; K_USER rows stop
     after the observer with EV_TARGET set (finish them with `drive_user`)."""
@@ -312,7 +313,7 @@ def traffic_tick(sens, ctrl, rows, kind, S, P, lanes, rand):
         _drive(sens, S, P, ctrl, r, lane, speed)
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def drive_user(sens, ctrl, rows, S, P):
     """Finish the K_USER rows of `traffic_tick` from the targets in S[:, TARGET_LANE/SPEED]."""
     for r in rows:

@@ -47,7 +47,7 @@ from madsim.agents.pid import PIDController, speed_gear
 from madsim.agents.sensor_row import SensorRow
 from madsim.agents.rewards import TICK_S, RewardSet
 from madsim.agents.traffic_fleet import TrafficFleet
-from madsim.envs.backends import LocalBackend
+from madsim.envs.backends import RANGEFINDER_ANGLES_DEG, LocalBackend
 from madsim.envs.config import (
     AgentConfig,
     ConfigError,
@@ -335,6 +335,26 @@ class MadrasCore:
                                placement=(float(where[k, 0]), float(where[k, 1])))
         obs = {name: self._observe(name, self.frame, self.agent_rows[name]) for name in self.live}
         return obs, infos
+
+    def view_state(self):
+        """What an `EnvView` draws of the current tick (madsim.render.envview.ViewState):
+        every car, the first live learner followed; None before the first reset."""
+        plan = self.plan
+        if plan is None:
+            return None
+        from madsim.render.envview import ViewState
+
+        live = [plan.row(n) for n in self.live] or [plan.row(n) for n in plan.agents]
+        k = live[0]
+        world = getattr(self.backend, "world", None)
+        suite = getattr(self.backend, "suite", None)
+        cars = [self.assets.car(name) for name in plan.cars]
+        return ViewState(
+            track=self.track, frame=self.frame, focus=k, world=world,
+            ids=tuple(f"T{j}" for j in range(plan.n_traffic)) + plan.agents, kinds=plan.kinds,
+            angles_deg=suite.angles_deg[k] if suite is not None else RANGEFINDER_ANGLES_DEG,
+            ticks_per_step=self.ticks_per_step,
+            body_m=np.array([(c.body_length, c.body_width) for c in cars], dtype=np.float64))
 
     @property
     def rows(self) -> list[SensorRow]:

@@ -68,6 +68,13 @@ class EpisodePlan:
         """World row of a learning agent's car."""
         return self.n_traffic + self.agents.index(agent)
 
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        """Kind of each car in World row order: 'traffic' ('parked' for the Parked
+        behaviour), then 'learner'."""
+        traffic = tuple("parked" if t.behaviour == "Parked" else "traffic" for t in self.traffic)
+        return traffic + ("learner",) * len(self.agents)
+
 
 def draw_plan(cfg: ScenarioConfig, episode: int, seed: int,
               rng: np.random.Generator) -> EpisodePlan:

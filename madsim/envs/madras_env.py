@@ -97,25 +97,25 @@ class MadrasEnv(CurriculumProgress, gymnasium.Env):
             from madsim.render.envview import EnvView
 
             self._view = EnvView(render_mode, **(render_options or {}))
-            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core)}
+            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core.ticks_per_step)}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         obs, infos = self.core.new_episode(seed, options, self.np_random)
         if self.render_mode == "human":
-            self._view.render(self.core)
+            self._view.render(self.core.view_state())
         return obs[self.agent], infos[self.agent]
 
     def step(self, action):
         obs, rewards, terminated, truncated, infos = self.core.step({self.agent: action})
         if self.render_mode == "human":
-            self._view.render(self.core)
+            self._view.render(self.core.view_state())
         a = self.agent
         return obs[a], rewards[a], terminated[a], truncated[a], infos[a]
 
     def render(self):
         """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""
-        return None if self._view is None else self._view.render(self.core)
+        return None if self._view is None else self._view.render(self.core.view_state())
 
     def close(self) -> None:
         if self._view is not None:

@@ -74,7 +74,7 @@ class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
             from madsim.render.envview import EnvView
 
             self._view = EnvView(render_mode, **(render_options or {}))
-            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core)}
+            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core.ticks_per_step)}
         self._np_random = None
 
     def observation_space(self, agent: str):
@@ -89,7 +89,7 @@ class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
         obs, infos = self.core.new_episode(seed, options, self._np_random)
         self.agents = list(self.core.live)
         if self.render_mode == "human":
-            self._view.render(self.core)
+            self._view.render(self.core.view_state())
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
@@ -98,12 +98,12 @@ class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
         result = self.core.step(actions)
         self.agents = list(self.core.live)
         if self.render_mode == "human":
-            self._view.render(self.core)
+            self._view.render(self.core.view_state())
         return result
 
     def render(self):
         """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""
-        return None if self._view is None else self._view.render(self.core)
+        return None if self._view is None else self._view.render(self.core.view_state())
 
     def close(self) -> None:
         if self._view is not None:

@@ -15,9 +15,9 @@ phase finds something near).
 
 Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
 Speed (benchmarks/bench_vector.py, per CPU-second of one core of this project's 2-core
-machine): ~120,000 env-steps/s at N = 1024, ~28,000 with four traffic cars per episode, most of
-it physics; for a single episode `MadrasEnv` is faster (the numpy bookkeeping costs ~150 us per
-step whatever N). threads=True shares the compiled part
+machine): ~180,000 env-steps/s at N = 1024, ~43,000 with four traffic cars per episode, most of
+it the cars' own physics sub-steps; for a single episode `MadrasEnv` is faster (the numpy
+bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
 among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
 Not supported: scenarios with more than one learning agent or with communication (ConfigError);
 rendering.

@@ -51,6 +51,7 @@ B_PIT = 5                   # first pit-wall column of the per-piece barrier tab
 C_HL, C_HW, C_RAD, C_MASS, C_IZZ, C_GAIN, C_WIN = range(7)
 # entries of the scalar parameter array
 (P_LENGTH, P_MOVE_CAP, P_RMAX, P_E_CAR, P_SKILL, P_STRETCH, P_CHORD2, P_PIT) = range(8)
+N_PRM = P_PIT + 1   # length of a contact solver's parameter row
 
 
 # --- compiled kernels ------------------------------------------------------------------------------
@@ -714,12 +715,13 @@ PREDICT_YAW_ACCEL = 100.0
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp, snap,
-               path, turn):
+def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, cars, prm,
+               wall_cache, vref, pairs, meta, snap, path, turn):
     """Advance cars a..b-1 (rows of `st`) by m sub-steps in one `advance_car` call each and
     return m: the most of nsub, nsub // 2, nsub // 4, ... sub-steps at which the broad phase
-    (arguments `bp` = `ContactSolver.broad_phase_args`) could flag none of them and change no
-    cache (so it need run after the last only), else 1 (the broad phase runs after each).
+    (its arguments cars .. meta, as `ContactSolver.broad_phase_args`, rows a..b-1 of `st` being
+    its cars 0..) could flag none of them and change no cache (so it need run after the last
+    only), else 1 (the broad phase runs after each).
 
     The test is `tick_clear` twice: before, with each car's path and turn predicted from its
     speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that sub-steps that will not
@@ -736,8 +738,8 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
             v = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
             path[i] = span * (v + PREDICT_ACCEL * span)
             turn[i] = span * min(abs(st[i, S_R]) + PREDICT_YAW_ACCEL * span, YAW_RATE_MAX)
-        if tick_clear(st[a:b, S_X], st[a:b, S_Y], st[a:b, S_YAW], bp[2], bp[3], bp[4],
-                      bp[5], bp[6], bp[7], path[a:b], turn[a:b]):
+        if tick_clear(st[a:b, S_X], st[a:b, S_Y], st[a:b, S_YAW], cars, prm, wall_cache, vref,
+                      pairs, meta, path[a:b], turn[a:b]):
             break
         m //= 2
     if m > 0:
@@ -754,8 +756,8 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
             turn[i] = span * r_max
         if m == 0:
             return 1
-        ok = tick_clear(snap[a:b, S_X], snap[a:b, S_Y], snap[a:b, S_YAW], bp[2], bp[3],
-                        bp[4], bp[5], bp[6], bp[7], path[a:b], turn[a:b])
+        ok = tick_clear(snap[a:b, S_X], snap[a:b, S_Y], snap[a:b, S_YAW], cars, prm, wall_cache,
+                        vref, pairs, meta, path[a:b], turn[a:b])
         for i in range(a, b):      # NaN speeds escape max(); they leave a NaN pose
             ok = ok and math.isfinite(st[i, S_X]) and math.isfinite(st[i, S_Y])
         if ok:
@@ -767,13 +769,13 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
 
 
 @numba.njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def whole_tick_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp, snap,
-                    path, turn):
+def whole_tick_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, cars, prm,
+                    wall_cache, vref, pairs, meta, snap, path, turn):
     """`whole_tick` in a function of its own (serial), compiled without array reference counts
     (`kernel.NO_REFCOUNT`: it allocates nothing; inlined into a caller that keeps them, its
     array aliases and calls cost atomic increments): for serial callers."""
-    return whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, bp,
-                      snap, path, turn)
+    return whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, cars,
+                      prm, wall_cache, vref, pairs, meta, snap, path, turn)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -788,7 +790,7 @@ def advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt,
     n = np.int64(st.shape[0])
     while k < nsub:
         k += whole_tick_rows(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k,
-                             dt, fuel_on, bp, snap, path, turn)
+                             dt, fuel_on, bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], snap, path, turn)
         if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
             return k
     return nsub
@@ -803,7 +805,7 @@ def advance_until_near_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, 
     n = np.int64(st.shape[0])
     while k < nsub:
         k += whole_tick(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k, dt,
-                        fuel_on, bp, snap, path, turn)
+                        fuel_on, bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], snap, path, turn)
         if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
             return k
     return nsub

@@ -324,48 +324,78 @@ def slipstream(st, cp, a, b, length):
     now: the body drag of each is multiplied by drag_factor^2, the smallest over the other cars
     of 1 - exp(-2 d / (Cd_other vx_other)) when this car follows another within 10 deg of its
     direction of travel, or 1 - 0.15 exp(-8 d / (Cd vx)) when it leads one within 8 deg; both
-    cars above 10 m/s, headings within 8 deg, d = distance between the CGs. With many cars the
-    others are visited in order of distance along the track, up to where no farther car could
-    lower the factor, taking two cars' distance as at least SLIP_CHORD x their distance along
-    the track (always so unless a car has spun round in a hairpin)."""
+    cars above 10 m/s, headings within 8 deg, d = distance between the CGs. Up to
+    SLIP_ALL_PAIRS cars every pair is visited (`slipstream_few`); with more the others are
+    visited in order of distance along the track, up to where no farther car could lower the
+    factor, taking two cars' distance as at least SLIP_CHORD x their distance along the track
+    (always so unless a car has spun round in a hairpin)."""
     n = b - a
-    cdv_max = 0.0
-    for i in range(a, b):
-        st[i, S_DRAGK] = 1.0
-        if st[i, S_VX] > SLIP_MIN_SPEED:
-            cdv_max = max(cdv_max, cp[i, C_CD] * st[i, S_VX])
-    if n < 2 or cdv_max == 0.0:
+    if n <= SLIP_ALL_PAIRS:
+        slipstream_few(st, cp, a, b)
+        return
+    cdv_max = _slip_start(st, cp, a, b)
+    if cdv_max == 0.0:
         return
     reach = SLIP_CUT * cdv_max / SLIP_CHORD
-    order = np.argsort(st[a:b, S_S]) if n > SLIP_ALL_PAIRS else np.arange(n)
+    order = np.argsort(st[a:b, S_S])
     s_sorted = st[a:b, S_S][order]
     for p in range(n):
         i = a + order[p]
         vx = st[i, S_VX]
         if vx <= SLIP_MIN_SPEED:
             continue
-        x, y, yaw = st[i, S_X], st[i, S_Y], st[i, S_YAW]
-        vg = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
-        hx, hy = st[i, S_VXG] / vg, st[i, S_VYG] / vg
+        x, y, yaw, hx, hy = _slip_heading(st, i)
         cdv = cp[i, C_CD] * vx
         k = 1.0
-        if n <= SLIP_ALL_PAIRS:
-            for j in range(a, b):
-                if j != i:
-                    k = _slip_pair(st, cp, i, j, x, y, yaw, hx, hy, vx, k)
-        else:
-            for step in (1, -1):          # along the track both ways
-                for m in range(1, n):
-                    q = (p + step * m) % n
-                    ds = (s_sorted[q] - s_sorted[p]) * step
-                    if ds < 0.0:
-                        ds += length
-                    # no car this far or farther can lower k: stop (d >= SLIP_CHORD ds)
-                    dmin = SLIP_CHORD * ds
-                    if ds > reach or (k < 1.0 and k <= min(1.0 - math.exp(-2.0 * dmin / cdv_max),
-                                                           1.0 - 0.15 * math.exp(-8.0 * dmin / cdv))):
-                        break
-                    k = _slip_pair(st, cp, i, a + order[q], x, y, yaw, hx, hy, vx, k)
+        for step in (1, -1):          # along the track both ways
+            for m in range(1, n):
+                q = (p + step * m) % n
+                ds = (s_sorted[q] - s_sorted[p]) * step
+                if ds < 0.0:
+                    ds += length
+                # no car this far or farther can lower k: stop (d >= SLIP_CHORD ds)
+                dmin = SLIP_CHORD * ds
+                if ds > reach or (k < 1.0 and k <= min(1.0 - math.exp(-2.0 * dmin / cdv_max),
+                                                       1.0 - 0.15 * math.exp(-8.0 * dmin / cdv))):
+                    break
+                k = _slip_pair(st, cp, i, a + order[q], x, y, yaw, hx, hy, vx, k)
+        st[i, S_DRAGK] = k
+
+
+@numba.njit(inline="always", **_JIT)
+def _slip_heading(st, i):
+    """Car i's x, y (m), yaw (rad) and unit direction of travel (hx, hy)."""
+    vg = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
+    return st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_VXG] / vg, st[i, S_VYG] / vg
+
+
+@numba.njit(inline="always", **_JIT)
+def _slip_start(st, cp, a, b):
+    """Every drag factor of cars a..b-1 to 1; returns the largest Cd x vx of a car faster than
+    SLIP_MIN_SPEED (0: none is, no slipstream)."""
+    cdv_max = 0.0
+    for i in range(a, b):
+        st[i, S_DRAGK] = 1.0
+        if st[i, S_VX] > SLIP_MIN_SPEED:
+            cdv_max = max(cdv_max, cp[i, C_CD] * st[i, S_VX])
+    return cdv_max
+
+
+@numba.njit(**_JIT, **NO_REFCOUNT)
+def slipstream_few(st, cp, a, b):
+    """`slipstream` of cars a..b-1 over every pair (for a few cars: no sorting, no allocation,
+    no reference counts: callable from a NO_REFCOUNT kernel)."""
+    if _slip_start(st, cp, a, b) == 0.0 or b - a < 2:
+        return
+    for i in range(a, b):
+        vx = st[i, S_VX]
+        if vx <= SLIP_MIN_SPEED:
+            continue
+        x, y, yaw, hx, hy = _slip_heading(st, i)
+        k = 1.0
+        for j in range(a, b):
+            if j != i:
+                k = _slip_pair(st, cp, i, j, x, y, yaw, hx, hy, vx, k)
         st[i, S_DRAGK] = k
 
 

@@ -15,27 +15,23 @@ and Python is entered only for a slot whose broad phase finds something near (it
 `ContactSolver` then resolves, as in `World`).
 
 Contact solvers are the expensive part of a World (building the pymunk barrier segments takes
-~100 ms and a few MB per solver), so a slot gets one only when it first needs one: until then
-its broad phase runs on its own copy of the solver's reset-state caches (the broad phase never
-touches pymunk), and at the first "near" the caches move into a solver taken from a pool of
-solvers built for the same track and cars. The solver goes back to the pool, reset, when the
-slot starts its next episode. Episodes that never touch a barrier or another car never build one.
+~100 ms and a few MB per solver), so a slot gets one only when it first needs one: the broad
+phase (which never touches pymunk) runs on the slot's rows of batch-wide copies of a solver's
+tables and caches, and at the first "near" the slot takes a solver from a pool of solvers
+built for the same track and cars; each resolve copies the caches into it and back. The
+solver goes back to the pool, reset, when the slot starts its next episode. Episodes that
+never touch a barrier or another car never build one.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
-from numba import typed
 
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
-from madsim.physics.contact_kernels import C_GAIN, C_RAD, P_MOVE_CAP, _broad_phase, whole_tick_rows
-from madsim.physics.world_tick import rank_rows
 from madsim.physics.sensors import (
     N_VALUES,
     O_FOCUS,
@@ -45,138 +41,22 @@ from madsim.physics.sensors import (
     FocusState,
     SensorFrame,
     apply_noise,
-    sensor_kernel,
 )
 from madsim.physics.tables import car_table, piece_table
 from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available
+from madsim.physics.contact_kernels import N_PRM
+from madsim.physics.world_batch_kernels import (
+    advance_slots,
+    advance_slots_parallel,
+    race_positions,
+    sense_slots,
+    sense_slots_parallel,
+)
 from madsim.tracks.track import Track
 
 __all__ = ["WorldBatch"]
 
 _SOLVER_CONSTS = 4       # broad_phase_args: (geo, bar, cars, prm) never written, then 6 caches
-
-# The batch loops are module-level kernels in numba's disk cache (`madsim.kernel_cache` renews
-# their entries when any kernel module changes): one per-slot body each, run by a serial and a
-# parallel (slots shared among threads) loop. With contact off the broad phase is never called.
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near, piece, bps,
-                  hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
-    """World.step for slot e: sub-steps from kpos[e] (the rest at once where provably nothing
-    is near) until the broad phase finds something near (near[e] != 0, kpos[e] = sub-steps
-    done) or all nsub are done (near[e] = 0)."""
-    a, b = off[e], off[e] + ncar[e]
-    t = trk[e]
-    pt, surf, tsc = pts[t], surfs[t], tscs[t]
-    k = kpos[e]
-    if k == 0:
-        hits[a:b] = False
-        if b - a > 1:      # World.step: slipstream from the poses at the tick's start
-            kernel.slipstream(st, cp, a, b, tsc[L.T_LENGTH])
-    if not with_contact:
-        for i in range(a, b):
-            kernel.advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, nsub, dt, fuel_on)
-        kpos[e] = nsub
-        near[e] = 0
-        return
-    bp = bps[np.int64(e)]
-    found = 0
-    while k < nsub:
-        k += whole_tick_rows(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, bp,
-                             snap, path, turn)
-        for i in range(a, b):
-            piece[i] = int(st[i, L.S_PIECE])
-        if b - a == 1 and _clear_of_walls(st[a, L.S_X], st[a, L.S_Y], st[a, L.S_YAW], piece[a],
-                                          bp[0], bp[2], bp[3], bp[4], bp[8], bp[9]):
-            continue
-        found = _broad_phase(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
-                             bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], bp[8], bp[9])
-        if found != 0:
-            break
-    kpos[e] = k
-    near[e] = found
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _advance(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece, bps,
-             hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
-    """`_advance_slot` for every slot where run[e], one after the other."""
-    for e in range(off.shape[0]):
-        if run[e]:
-            _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near,
-                          piece, bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn)
-
-
-@numba.njit(cache=True, error_model="numpy", parallel=True)
-def _advance_parallel(st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, run, kpos, near, piece,
-                      bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn):
-    """`_advance` with the slots shared among threads (independent: bit-identical)."""
-    for e in numba.prange(off.shape[0]):
-        if run[e]:
-            _advance_slot(e, st, cp, cw, ct, u, pts, surfs, tscs, trk, off, ncar, kpos, near,
-                          piece, bps, hits, nsub, dt, fuel_on, with_contact, snap, path, turn)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin, active,
-                max_range, local, out):
-    """SensorSuite.frame without focus and noise for slot e's cars."""
-    a, b = off[e], off[e] + ncar[e]
-    t = trk[e]
-    sensor_kernel(local[:b - a], st[a:b], geos[t], runs[t], pruns[t], half[t], angles[a:b],
-                  race_pos[a:b], origin[a:b], active[a:b], max_range, out[a:b])
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _sense(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin, active,
-           max_range, local, out):
-    """`_sense_slot` for every slot where run[e], one after the other."""
-    for e in range(off.shape[0]):
-        if run[e]:
-            _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-                        active, max_range, local, out)
-
-
-@numba.njit(cache=True, error_model="numpy", parallel=True)
-def _sense_parallel(st, run, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-                    active, max_range, local, out):
-    """`_sense` with the slots shared among threads."""
-    for e in numba.prange(off.shape[0]):
-        if run[e]:
-            _sense_slot(e, st, off, ncar, trk, geos, runs, pruns, half, angles, race_pos, origin,
-                        active, max_range, local, out)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _race_positions(st, run, off, ncar, race_pos):
-    """World._update_race_pos per slot where run[e]: rank by laps, then distance raced, then
-    row."""
-    for e in range(off.shape[0]):
-        if not run[e] or ncar[e] < 2:
-            continue
-        rank_rows(st, off[e], off[e] + ncar[e], race_pos)
-
-
-@numba.njit(cache=True, inline="always")
-def _clear_of_walls(x, y, yaw, piece, geo, cars, prm, wall_cache, flags, slack):
-    """The contact broad phase's first test for a lone car, with the same arithmetic and
-    effects: True if the car's cached wall clearance cannot have been used up since it was
-    measured (the broad phase would then return 0 having set only flags and slack). False:
-    call the broad phase."""
-    if piece < 0 or piece >= geo.shape[0] or not (
-            math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
-        return False
-    moved = math.sqrt((x - wall_cache[0, 0]) ** 2 + (y - wall_cache[0, 1]) ** 2)
-    turn = yaw - wall_cache[0, 2]
-    turn = turn - 2.0 * math.pi * math.floor((turn + math.pi) / (2.0 * math.pi))
-    used = cars[0, C_GAIN] * moved + cars[0, C_RAD] * abs(turn)
-    if moved < prm[P_MOVE_CAP] and used < wall_cache[0, 3]:
-        flags[0] = 0
-        slack[0] = wall_cache[0, 3] - used
-        return True
-    return False
-
 
 @dataclass
 class _Kind:
@@ -238,23 +118,37 @@ class WorldBatch:
         self._info = np.zeros(2, dtype=np.int64)
         self._tracks: dict[int, int] = {}            # id(Track) -> index
         self._track_objs: list[Track] = []
-        # per track: (pt, surf, tsc, geo, runs, prun) in Python, and in typed lists for the kernels
+        # per track: (pt, surf, tsc, geo, runs, prun) in Python; for the physics kernels stacked
+        # (track t: rows off[t]:off[t + 1])
         self._tables: list[tuple] = []
-        self._pt, self._surf, self._tsc = typed.List(), typed.List(), typed.List()
-        self._geo, self._runs, self._prun = typed.List(), typed.List(), typed.List()
+        self._pt, self._surf, self._geo_rows, self._bar, self._runs = (_Stacked() for _ in range(5))
+        self._prun = _Stacked(ndim=1, dtype=np.int64)
+        self._tsc_all = np.zeros((0, 4))
+        self._n_geo = np.zeros(0, dtype=np.int64)      # pieces per track
         self._half = np.zeros(0)
         self._kinds: dict = {}
         self._slot_kind: list[_Kind | None] = [None] * self.n_slots
         self._solver: list = [None] * self.n_slots     # attached ContactSolver per slot
-        self._bps = _list_of(_dummy_bp(), self.n_slots)   # broad-phase args per slot
+        # the contact broad phase's tables and caches (ContactSolver.broad_phase_args) of every
+        # slot, rows as `state` (per car) or one per slot; a slot's solver, once attached, holds
+        # them during its resolve only (`_resolve` copies them there and back)
+        self._box = np.zeros((c, 7))                   # per-car constants
+        self._prm = np.zeros((self.n_slots, N_PRM))    # parameters
+        self._wall_cache = np.zeros((c, 4))
+        self._vref = np.zeros((c, 2))
+        self._pairs = np.zeros((self.n_slots, max(64, 8 * self.capacity), 2), dtype=np.int64)
+        self._pcap = np.zeros(self.n_slots, dtype=np.int64)   # the slot's pair-list capacity
+        self._meta = np.zeros((self.n_slots, 3), dtype=np.int64)
+        self._flags = np.zeros(c, dtype=np.int8)
+        self._slack = np.zeros(c)
         self._noise_rng: list = [None] * self.n_slots
         self._noisy_slots = 0
         self._focus_state: list = [None] * self.n_slots
         self.contact_pairs: list[list] = [[] for _ in range(self.n_slots)]
         self.solvers_built = 0
         threads = bool(threads)
-        self._advance = _advance_parallel if threads else _advance
-        self._sense = _sense_parallel if threads else _sense
+        self._advance = advance_slots_parallel if threads else advance_slots
+        self._sense = sense_slots_parallel if threads else sense_slots
 
     # --- episodes -----------------------------------------------------------------------------
 
@@ -297,8 +191,17 @@ class WorldBatch:
         self._noise_rng[slot] = rng if noisy else None
         self._focus_state[slot] = FocusState(n) if self.focus else None
         if self.contact:
-            consts, caches = kind.solver_args[:_SOLVER_CONSTS], kind.solver_args[_SOLVER_CONSTS:]
-            _list_set(self._bps, slot, consts + tuple(c.copy() for c in caches))
+            args = kind.solver_args
+            self._box[rows], self._prm[slot] = args[2], args[3]
+            self._pcap[slot] = args[6].shape[0]
+            for src, dst in zip(args[_SOLVER_CONSTS:], self._caches(slot)):
+                dst[...] = src
+
+    def _caches(self, slot: int) -> tuple:
+        """Views of slot `slot`'s broad-phase caches, as ContactSolver.broad_phase_args[4:]."""
+        rows = self.rows(slot)
+        return (self._wall_cache[rows], self._vref[rows], self._pairs[slot, :self._pcap[slot]],
+                self._meta[slot], self._flags[rows], self._slack[rows])
 
     def _kind(self, key, track: Track, cars: list[CarSpec]) -> _Kind:
         kind = self._kinds.get(key)
@@ -310,11 +213,11 @@ class WorldBatch:
         kind = _Kind(world, self._track_of(track), cp, curve_w, curve_t)
         if self.contact:
             solver = self._new_solver(kind)
-            geo = self._tables[kind.track_index][3]
+            t = kind.track_index
             args = solver.broad_phase_args
-            # the slot copies hold writable arrays only (one numba type for every slot)
-            kind.solver_args = (geo,) + tuple(args[1:_SOLVER_CONSTS]) + tuple(
-                c.copy() for c in args[_SOLVER_CONSTS:])
+            kind.solver_args = tuple(c.copy() for c in args)    # (the caches as reset)
+            if self._bar.rows(t) is None:
+                self._bar.put(t, args[1])
             kind.pool.append(solver)
         self._kinds[key] = kind
         return kind
@@ -329,13 +232,12 @@ class WorldBatch:
                                            np.array(track.runs, dtype=np.float64),
                                            np.array(track.piece_run, dtype=np.int64))
             self._tables.append(tables)
-            if t == 0:
-                (self._pt, self._surf, self._tsc, self._geo, self._runs,
-                 self._prun) = (_list_of(x, 1) for x in tables)
-            else:
-                for lst, x in zip((self._pt, self._surf, self._tsc, self._geo, self._runs,
-                                   self._prun), tables):
-                    _list_append(lst, x)
+            pt, surf, tsc, geo, runs, prun = tables
+            for stack, table in zip((self._pt, self._surf, self._geo_rows, self._runs,
+                                     self._prun), (pt, surf, geo, runs, prun)):
+                stack.put(t, table)
+            self._tsc_all = np.vstack([self._tsc_all, tsc[None]])
+            self._n_geo = np.append(self._n_geo, geo.shape[0])
             self._half = np.append(self._half, track.width / 2)
         return t
 
@@ -370,14 +272,9 @@ class WorldBatch:
             self._solver[slot] = None
 
     def _attach(self, slot: int):
-        """Give the slot a contact solver holding its broad-phase caches."""
+        """Give the slot a contact solver (its caches come with each `_resolve`)."""
         kind = self._slot_kind[slot]
         solver = kind.pool.pop() if kind.pool else self._new_solver(kind)
-        mine = _list_get(self._bps, slot)
-        theirs = solver.broad_phase_args
-        for src, dst in zip(mine[_SOLVER_CONSTS:], theirs[_SOLVER_CONSTS:]):
-            k = min(src.shape[0], dst.shape[0])
-            dst[:k] = src[:k]
         self._solver[slot] = solver
         return solver
 
@@ -401,11 +298,16 @@ class WorldBatch:
                              f"{L.CONTROL_COLUMNS[col]} is {u[row, col]!r} (must be finite)")
         run = mask.copy()
         self._kpos[:] = 0
+        tables = (self._pt.all, self._pt.off, self._surf.all, self._surf.off, self._tsc_all,
+                  self._n_geo)
+        contact = (self._geo_rows.all, self._geo_rows.off, self._bar.all, self._bar.off,
+                   self._box, self._prm, self._wall_cache, self._vref, self._pairs, self._pcap,
+                   self._meta, self._flags, self._slack)
         while True:
-            self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, self._pt,
-                          self._surf, self._tsc, self._track, self.offsets, self.n_cars, run,
-                          self._kpos, self._near, self._piece, self._bps, self.hits, nsub,
-                          DT, self.fuel, self.contact, self._snap, self._path, self._turn)
+            self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, tables,
+                          self._track, self.offsets, self.n_cars, run, self._kpos, self._near,
+                          self._piece, self.hits, nsub, DT, self.fuel, self.contact, self._snap,
+                          self._path, self._turn, contact)
             near = np.flatnonzero(run & (self._near != 0))
             if near.size == 0:
                 break
@@ -415,12 +317,15 @@ class WorldBatch:
             run[near] = self._kpos[near] < nsub
             if not run.any():
                 break
-        _race_positions(self.state, mask, self.offsets, self.n_cars, self.race_pos)
+        race_positions(self.state, mask, self.offsets, self.n_cars, self.race_pos)
         self.sense(mask)
 
     def _resolve(self, slot: int) -> None:
         """World.finish_tick's contact resolve for one slot."""
         solver = self._solver[slot] or self._attach(slot)
+        for src, dst in zip(self._caches(slot), solver.broad_phase_args[_SOLVER_CONSTS:]):
+            k = min(src.shape[0], dst.shape[0])
+            dst[:k] = src[:k]
         rows = self.rows(slot)
         st = self.state
         cols = [st[rows, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R)]
@@ -434,14 +339,22 @@ class WorldBatch:
             t = int(self._track[slot])
             pt, surf, tsc = self._tables[t][:3]
             kernel.refresh(st[rows], self._cp[rows], pt, surf, tsc, True)
-        args = solver.broad_phase_args          # resolve may have grown its pair list
-        _list_set(self._bps, slot, (self._tables[int(self._track[slot])][3],) + tuple(args[1:]))
+        caches = solver.broad_phase_args[_SOLVER_CONSTS:]
+        pairs = caches[2]                       # resolve may have grown its pair list
+        if pairs.shape[0] > self._pairs.shape[1]:
+            more = pairs.shape[0] - self._pairs.shape[1]
+            self._pairs = np.pad(self._pairs, ((0, 0), (0, more), (0, 0)))
+        self._pcap[slot] = pairs.shape[0]
+        for src, dst in zip(caches, self._caches(slot)):
+            dst[...] = src
 
     def sense(self, mask: np.ndarray) -> None:
         """Compute `sensors` of the masked slots (as `SensorSuite.frame`; `step` does this)."""
         mask = np.asarray(mask, dtype=bool)
-        self._sense(self.state, mask, self.offsets, self.n_cars, self._track, self._geo,
-                    self._runs, self._prun, self._half, self._angles, self.race_pos, self._origin,
+        tables = (self._geo_rows.all, self._geo_rows.off, self._runs.all, self._runs.off,
+                  self._prun.all, self._prun.off)
+        self._sense(self.state, mask, self.offsets, self.n_cars, self._track, tables,
+                    self._half, self._angles, self.race_pos, self._origin,
                     self._active, SENSOR_RANGE_M, self._local, self.sensors)
         if self.focus or self._noisy_slots:
             for e in np.flatnonzero(mask).tolist():
@@ -474,38 +387,26 @@ class WorldBatch:
         return sum(s is not None for s in self._solver)
 
 
-# typed-list operations inside cached kernels: numba compiles typed.List's Python-side methods
-# in every process (about 0.15 s per item type and operation), these come from the disk cache
+class _Stacked:
+    """Tables of different row counts (one per track) stacked in one array for the kernels:
+    table t is all[off[t]:off[t + 1]]; a table not yet put has no rows. Every table of a stack
+    has `ndim` dimensions, the same `dtype` and (2-D) the same width."""
 
+    def __init__(self, ndim: int = 2, dtype=np.float64):
+        self._tables: list = []
+        self.dtype = np.dtype(dtype)
+        self.all = np.zeros((0, 1) if ndim == 2 else 0, dtype=self.dtype)
+        self.off = np.zeros(1, dtype=np.int64)
 
-@numba.njit(cache=True)
-def _list_of(item, n):
-    """A typed list of n times `item`."""
-    out = typed.List()
-    for _ in range(n):
-        out.append(item)
-    return out
+    def rows(self, t: int):
+        """Table t, or None if it was never put."""
+        return self._tables[t] if t < len(self._tables) else None
 
-
-@numba.njit(cache=True)
-def _list_append(items, item):
-    items.append(item)
-
-
-@numba.njit(cache=True)
-def _list_set(items, i, item):
-    items[i] = item
-
-
-@numba.njit(cache=True)
-def _list_get(items, i):
-    return items[i]
-
-
-def _dummy_bp() -> tuple:
-    """Broad-phase arguments of the numba types a solver's have, for slots without one."""
-    f2, f1 = np.zeros((1, 1)), np.zeros(1)
-    return (f2, f2, f2, f1, f2, f2, np.zeros((1, 2), dtype=np.int64), np.zeros(3, dtype=np.int64),
-            np.zeros(1, dtype=np.int8), f1)
-
-
+    def put(self, t: int, table: np.ndarray) -> None:
+        """Set table t."""
+        self._tables += [None] * (t + 1 - len(self._tables))
+        self._tables[t] = np.ascontiguousarray(table, dtype=self.dtype)
+        empty = np.zeros((0,) + self._tables[t].shape[1:], dtype=self.dtype)
+        parts = [x if x is not None else empty for x in self._tables]
+        self.all = np.concatenate(parts)
+        self.off = np.concatenate([[0], np.cumsum([p.shape[0] for p in parts])]).astype(np.int64)

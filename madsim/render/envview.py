@@ -1,23 +1,54 @@
-"""`render_mode` for the envs, kept out of them: an `EnvView` draws a `MadrasCore`'s cars.
+"""`render_mode` for the envs, kept out of them: an `EnvView` draws a `ViewState`.
 
-The envs hold one `EnvView` when a render mode is asked for and call `view.render(core)`:
-"rgb_array" returns the frame, "human" shows it in a window at the env's real-time rate
-(`fps(core)`: 50 ticks a second / ticks per step, times `speedup`) and returns None. Poses
-come from the local World when there is one, else from the SCR sensors (UDP backend), so
-rendering never touches the observation path.
+An env holds one `EnvView` when a render mode is asked for and calls
+`view.render(state)` with a `ViewState` it builds of the current tick (the track, the SCR
+sensors, the local World if there is one, labels, kinds, the car to follow): render reads
+nothing else of the env and imports none of it. "rgb_array" returns the frame, "human" shows
+it in a window at the env's real-time rate (`fps(ticks_per_step)`: 50 ticks a second / ticks
+per step, times `speedup`) and returns None. Poses come from the World when there is one,
+else from the SCR sensors (UDP backend), so rendering never touches the observation path.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from madsim.net.protocol import SNAKEOIL_ANGLES_DEG
 from madsim.raster.poses import poses_from_sensors
-from madsim.render.scene import CarPoses, Hud, Overlay, kinds_of_plan
+from madsim.render.scene import CarPoses, Hud, Overlay
 from madsim.render.topdown import Camera, Renderer
+
+if TYPE_CHECKING:
+    from madsim.physics.sensors import SensorFrame
+    from madsim.physics.world import World
+    from madsim.tracks.track import Track
 
 RENDER_MODES = ("human", "rgb_array")
 TICKS_PER_SECOND = 50.0
+
+
+@dataclass(frozen=True)
+class ViewState:
+    """One tick as an env hands it to `EnvView.render`, cars in World row order (N cars).
+
+    track: the episode's Track; frame: the SCR sensors of every car (SensorFrame); ids,
+    kinds: (N,) label and kind ('traffic', 'parked', 'learner') of each car; focus: the row
+    followed and highlighted; angles_deg: (19,) its rangefinder angles (the overlay);
+    ticks_per_step: ticks per env step (the real-time rate); world: the local World (poses
+    and the HUD from its state) or None (over UDP: poses and HUD from the sensors, bodies
+    from body_m (N, 2): length, width m)."""
+
+    track: Track
+    frame: SensorFrame
+    ids: tuple[str, ...]
+    kinds: tuple[str, ...]
+    focus: int
+    angles_deg: np.ndarray
+    ticks_per_step: int = 1
+    world: World | None = None
+    body_m: np.ndarray | None = None
 
 
 class EnvView:
@@ -38,40 +69,34 @@ class EnvView:
         self.renderer: Renderer | None = None
 
     @staticmethod
-    def fps(core) -> float:
+    def fps(ticks_per_step: int) -> float:
         """Env steps per simulated second: the real-time frame rate (RecordVideo's fps)."""
-        return TICKS_PER_SECOND / core.ticks_per_step
+        return TICKS_PER_SECOND / ticks_per_step
 
-    def render(self, core) -> np.ndarray | None:
-        """Draw the core's current tick (None in 'human' mode, or before the first reset)."""
-        plan = getattr(core, "plan", None)
-        if plan is None:
+    def render(self, state: ViewState | None) -> np.ndarray | None:
+        """Draw the tick `state` describes (None in 'human' mode, or for no state: before the
+        env's first reset)."""
+        if state is None:
             return None
-        track = core.track
+        track = state.track
         if self.renderer is None or self.renderer.track is not track:
             if self.renderer is not None:
                 self.renderer.close()
             self.renderer = Renderer(track, size=self.size, camera=self.camera)
-        world = getattr(core.backend, "world", None)
+        world, frame, k = state.world, state.frame, state.focus
         if world is not None:
             poses = CarPoses.from_world(world)
+            hud = Hud.from_world(world, k, state.ids[k])
         else:
-            cars = [core.assets.car(name) for name in plan.cars]
-            poses = CarPoses(*poses_from_sensors(track, core.frame),
-                             np.array([c.body_length for c in cars]), np.array([c.body_width for c in cars]))
-        live = [plan.row(n) for n in core.live] or [plan.row(n) for n in plan.agents]
-        k = live[0]
-        ids = [f"T{j}" for j in range(plan.n_traffic)] + list(plan.agents)
-        hud = Hud.from_world(world, k, ids[k]) if world is not None else _hud_from_sensors(core.frame, k, ids[k])
-        overlay = None
-        if self.overlay:
-            suite = getattr(core.backend, "suite", None)
-            angles = suite.angles_deg[k] if suite is not None else SNAKEOIL_ANGLES_DEG
-            overlay = Overlay.from_sensors(core.frame, k, angles)
-        img = self.renderer.frame(poses, ids, kinds_of_plan(plan), highlight=k, hud=hud, overlay=overlay)
+            body = np.asarray(state.body_m, dtype=np.float64)
+            poses = CarPoses(*poses_from_sensors(track, frame), body[:, 0], body[:, 1])
+            hud = _hud_from_sensors(frame, k, state.ids[k])
+        overlay = Overlay.from_sensors(frame, k, state.angles_deg) if self.overlay else None
+        img = self.renderer.frame(poses, list(state.ids), state.kinds, highlight=k, hud=hud,
+                                  overlay=overlay)
         if self.render_mode == "rgb_array":
             return img
-        fps = self.fps(core) * self.speedup if self.speedup > 0 else None
+        fps = self.fps(state.ticks_per_step) * self.speedup if self.speedup > 0 else None
         self.renderer.show(fps)
         return None
 

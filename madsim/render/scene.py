@@ -112,10 +112,3 @@ class Overlay:
         """From row k of a SensorFrame and that car's 19 rangefinder angles."""
         return cls(np.asarray(angles_deg, dtype=np.float64), np.array(frame.track[k]),
                    np.array(frame.opponents[k]))
-
-
-def kinds_of_plan(plan) -> tuple[str, ...]:
-    """Kinds in World row order of an env's EpisodePlan: traffic cars ('parked' for the
-    Parked behaviour), then the learners."""
-    traffic = tuple("parked" if t.behaviour == "Parked" else "traffic" for t in plan.traffic)
-    return traffic + ("learner",) * len(plan.agents)

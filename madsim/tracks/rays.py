@@ -86,7 +86,7 @@ def _arc_q(runs, j, x, y):
     return d / 2.0 + _wrapn(sense * (phi - theta0) - d / 2.0)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)   # allocates nothing: no reference counts (kernel.NO_REFCOUNT)
 def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
     """Distance along unit direction (dx, dy) from (px, py), inside run j, to the first road
     edge crossing, walking from run to run; max_range if none closer."""

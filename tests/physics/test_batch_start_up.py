@@ -1,4 +1,4 @@
-"""make_vec's batch loops and typed-list operations come from numba's on-disk cache (issue 13:
+"""make_vec's batch loops come from numba's on-disk cache (issue 13:
 they were per-process closures and typed.List methods, compiled again in every new process:
 about 1.5 s in the first reset and 2 s in the first step)."""
 
@@ -41,5 +41,5 @@ def test_a_fresh_process_loads_make_vecs_batch_loops_from_the_disk_cache():
                          timeout=120, env=pyenv, check=True).stdout
     found = json.loads(out.strip().splitlines()[-1])
     assert found["misses"] == []
-    for name in ("_advance", "_sense", "_race_positions", "_list_of", "_list_set"):
-        assert f"madsim.physics.world_batch.{name}" in found["hits"]
+    for name in ("advance_slots", "sense_slots", "race_positions"):
+        assert f"madsim.physics.world_batch_kernels.{name}" in found["hits"]

@@ -29,10 +29,10 @@ class RenderingEnv(MadrasEnv):
         super().__init__(config)
         self.render_mode = render_mode
         self._view = EnvView(render_mode, size=size) if render_mode is not None else None
-        self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core)}
+        self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core.ticks_per_step)}
 
     def render(self):
-        return None if self._view is None else self._view.render(self.core)
+        return None if self._view is None else self._view.render(self.core.view_state())
 
     def close(self):
         if self._view is not None:
@@ -119,3 +119,32 @@ def test_traffic_cars_get_their_kind_colours():
         assert 0 <= sx < 800 and 0 <= sy < 600
         assert tuple(img[int(sy), int(sx)]) == KIND_COLOURS[kind], kind
     env.close()
+
+
+def test_envview_draws_a_view_state_built_from_plain_parts():
+    """EnvView reads only the ViewState it is handed (no env): here as over UDP, poses from
+    the SCR sensors and bodies from body_m; the followed car is drawn in the learner colour at
+    the centre of a follow camera, the other in its kind's colour where the world has it."""
+    from madsim.cars.loader import load_car
+    from madsim.physics.sensors import SensorSuite
+    from madsim.physics.world import World
+    from madsim.render.envview import ViewState
+    from madsim.tracks.library import load_track
+
+    track, car = load_track("madsim-road"), load_car("madsim-sedan")
+    world = World(track, [car, car], np.random.default_rng(0), contact=False)
+    world.reset(np.array([[40.0, 0.0, 0.0], [60.0, -3.0, 0.0]]))
+    frame = SensorSuite(world).frame()
+    state = ViewState(track=track, frame=frame, ids=("T0", "me"), kinds=("parked", "learner"),
+                      focus=1, angles_deg=np.zeros(19), ticks_per_step=5,
+                      body_m=np.array([[car.body_length, car.body_width]] * 2))
+    view = EnvView("rgb_array", size=(320, 240))
+    img = view.render(state)
+    assert img.shape == (240, 320, 3)
+    assert view.renderer.last_hud[0] == "me"
+    assert tuple(img[120, 158]) == KIND_COLOURS["learner"]
+    sx, sy = view.renderer.view.to_screen(world.x[0], world.y[0])
+    assert tuple(img[int(sy), int(sx)]) == KIND_COLOURS["parked"]
+    assert EnvView.fps(state.ticks_per_step) == 10.0
+    assert view.render(None) is None
+    view.close()
