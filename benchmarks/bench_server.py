@@ -20,7 +20,9 @@ client is a plain socket in this process that sends the init once, then answers 
 message at once with one fixed C++-style control string, without parsing anything. The clock
 runs over the last `--ticks` ticks, after WARMUP ticks (1,000) that absorb start-up costs (the
 first ticks used to wait for numba; they are component figures), up to `***shutdown***`. Real TORCS
-reaches about 10,400 ticks/s here with a minimal client (issue 4). With --profile FILE the
+reaches about 10,400 ticks/s here with a minimal client (issue 4). Each case also prints the
+server process's CPU time per tick over the same ticks (user + system, from /proc): on a shared
+machine it moves far less than the wall rate, which depends on where server and client run. With --profile FILE the
 server runs under cProfile and its 25 most expensive functions (own time) are printed.
 
 Cases (`--case`, default all three):
@@ -81,8 +83,17 @@ def free_udp_port() -> int:
 WARMUP = 1_000
 
 
-def run(ticks: int, track: str, control: bytes, profile: str | None) -> float:
-    """Ticks per second of wall time over `ticks` ticks after WARMUP (states counted here)."""
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of process `pid` so far (s), from /proc (Linux)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def run(ticks: int, track: str, control: bytes, profile: str | None) -> tuple[float, float]:
+    """Ticks per second of wall time over `ticks` ticks after WARMUP (states counted here), and
+    the server process's CPU time per tick (us) over the same ticks (to the last 1,000th tick:
+    unlike the wall rate it does not depend on where the scheduler puts server and client)."""
     port = free_udp_port()
     cmd = [sys.executable]
     if control == b"":
@@ -114,16 +125,21 @@ def run(ticks: int, track: str, control: bytes, profile: str | None) -> float:
             send(control, addr)
             data = recv(2048)
         start = time.perf_counter()
+        cpu0 = cpu_seconds(server.pid)
+        cpu = (0, cpu0)
         states = 1
         while data[:3] != b"***":
             send(control, addr)
             data = recv(2048)
             states += 1
+            if states % 1000 == 0:
+                cpu = (states - 1, cpu_seconds(server.pid))
         elapsed = time.perf_counter() - start
         server.wait(timeout=30)
         if server.returncode != 0:
             raise SystemExit(f"server exited with {server.returncode}: {server.stderr.read().decode()[-500:]}")
-        return (states - 1) / elapsed   # states - 1 answered intervals = world ticks timed
+        # states - 1 answered intervals = world ticks timed
+        return (states - 1) / elapsed, 1e6 * (cpu[1] - cpu0) / max(cpu[0], 1)
     finally:
         sock.close()
         if server.poll() is None:
@@ -195,11 +211,12 @@ def main() -> None:
     if args.profile and len(cases) != 1:
         ap.error("--profile needs exactly one --case")
     for case in cases:
-        rate = run(args.ticks, args.track, CONTROLS[case], args.profile)
+        rate, cpu_us = run(args.ticks, args.track, CONTROLS[case], args.profile)
         what = ("do-nothing Python UDP server (transport floor)" if case == "echo" else
                 f"madsim serve, sync mode, {args.track}, car {case}")
         print(f"{what}, one minimal client, {args.ticks} ticks: {rate:,.0f} ticks/s of wall time "
-              f"({1e6 / rate:.1f} us per tick; real TORCS ~10,400)", flush=True)
+              f"({1e6 / rate:.1f} us per tick; real TORCS ~10,400); server CPU {cpu_us:.1f} us "
+              "per tick", flush=True)
     if args.profile and os.path.exists(args.profile):
         pstats.Stats(args.profile).sort_stats("tottime").print_stats(25)
 

@@ -55,43 +55,46 @@ _POINTERS = {"f8": _pointer_intrinsic(types.float64), "i8": _pointer_intrinsic(t
 f8_ptr, i8_ptr, u1_ptr, i1_ptr, b1_ptr = (_POINTERS[k] for k in ("f8", "i8", "u1", "i1", "b1"))
 
 
-# views of row k of a table, one function per dtype and shape (an intrinsic is no argument)
-@numba.njit(cache=True, inline="always")
+# views of row k of a table, one function per dtype and shape (an intrinsic is no argument).
+# Called, not inlined, with k an int64 (not a literal constant): each compiles once, and LLVM
+# inlines the calls; inlined by numba they were typed again at each of the tick's ~60 call
+# sites (1 s of a cold start), and a literal k would compile one copy per row.
+@numba.njit(cache=True)
 def f8_vector(table, k):
     return numba.carray(f8_ptr(table[k, 0]), (table[k, 1],))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def f8_matrix(table, k):
     return numba.carray(f8_ptr(table[k, 0]), (table[k, 1], table[k, 2]))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def i8_vector(table, k):
     return numba.carray(i8_ptr(table[k, 0]), (table[k, 1],))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def i8_matrix(table, k):
     return numba.carray(i8_ptr(table[k, 0]), (table[k, 1], table[k, 2]))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def u1_vector(table, k):
     return numba.carray(u1_ptr(table[k, 0]), (table[k, 1],))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def u1_matrix(table, k):
     return numba.carray(u1_ptr(table[k, 0]), (table[k, 1], table[k, 2]))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def i1_vector(table, k):
     return numba.carray(i1_ptr(table[k, 0]), (table[k, 1],))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def b1_vector(table, k):
     return numba.carray(b1_ptr(table[k, 0]), (table[k, 1],))
 

@@ -155,7 +155,7 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
     the exact Python path (see the module docstring)."""
     n_values = rows.shape[1]
     for i in range(rows.shape[0]):
-        pos = 0
+        pos = np.int64(0)      # not the literal 0, for which numba would compile _put_g again
         start = 0
         ok = True
         for k in range(n_values + 1):
@@ -313,7 +313,7 @@ def decode_controls_row(buf, n, text, ends, slots, out):
     an optional final NUL); False: out is unspecified and the exact Python parser decides."""
     if n > 0 and buf[n - 1] == 0:
         n -= 1
-    pos = 0
+    pos = np.int64(0)      # not literals, for which numba would compile _number again
     start = 0
     for g in range(ends.shape[0]):
         for j in range(start, ends[g]):
@@ -327,7 +327,7 @@ def decode_controls_row(buf, n, text, ends, slots, out):
             return False
         if slot == 15:     # focus: snakeoil may send more directions; the first one counts
             while pos < n and buf[pos] == 32:
-                pos = _number(buf, pos + 1, n, out, 7, False)
+                pos = _number(buf, pos + 1, n, out, np.int64(7), np.bool_(False))
                 if pos < 0:
                     return False
         if pos >= n or buf[pos] != 41:   # ')'

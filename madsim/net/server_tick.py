@@ -55,12 +55,15 @@ TABLE = (
     ("due", "b1", 1, "C"), ("flat", "f8", 2, "C"),
     ("is_int", "b1", 1, "C"), ("literals", "u1", 1, "C"), ("literal_ends", "i8", 1, "C"),
     ("out", "u1", 2, "C"), ("out_len", "i8", 1, "C"), ("laps_seen", "f8", 1, "C"),
+    ("decoded", "f8", 1, "C"), ("asked", "i8", 1, "C"), ("asked_focus", "f8", 1, "C"),
+    ("time_s", "f8", 1, "C"), ("on_track", "b1", 1, "C"),
 )
 (INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, CP,
  CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
  BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
  PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
- OUT_LEN, LAPS_SEEN) = range(len(TABLE))
+ OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS, TIME_S, ON_TRACK) = (np.int64(k) for k in range(len(TABLE)))
+# int64 row numbers, not int literals: see array_table's views
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -86,6 +89,9 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
       exact encoder (out_len -1).
     Then DONE, with EVENT when the lap counts differ from laps_seen (N,), a damage exceeds
     max_damage, or a decoded meta is 1.
+    Its scratch arrays are in the table too (decoded (8,), asked, asked_focus, time_s,
+    on_track (N,)): it allocates nothing. (It keeps numba's reference counting: the table's
+    views are new arrays, which a function compiled without it cannot make.)
     """
     u = f8_matrix(t, U)
     n = u.shape[0]
@@ -96,9 +102,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
         inbox, inlen, meta = u1_matrix(t, INBOX), i8_vector(t, INLEN), i8_vector(t, META)
         cpp = (readonly(u1_vector(t, CPP_TEXT)), i8_vector(t, CPP_ENDS), i8_vector(t, CPP_SLOTS))
         snakeoil = (readonly(u1_vector(t, SO_TEXT)), i8_vector(t, SO_ENDS), i8_vector(t, SO_SLOTS))
-        dec = np.empty(8)
-        asked = np.empty(n, dtype=np.int64)
-        focus = np.empty(n)
+        dec, asked, focus = f8_vector(t, DECODED), i8_vector(t, ASKED), f8_vector(t, ASKED_FOCUS)
         m = 0
         whole = True
         for i in range(n):
@@ -141,8 +145,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
                       flat)
         count = 0
         if st[0, S_TIME] >= earliest[0]:        # one clock for all cars
-            time_s = np.empty(cars.shape[0])
-            on_track = np.empty(cars.shape[0], dtype=np.bool_)
+            time_s, on_track = f8_vector(t, TIME_S), b1_vector(t, ON_TRACK)
             for k in range(cars.shape[0]):
                 time_s[k] = st[cars[k], S_TIME]
                 on_track[k] = abs(flat[k, O_TPOS]) <= 1.0
@@ -192,6 +195,8 @@ class ServerTick:
         self.out_len = np.zeros(n, dtype=np.int64)
         self._messages = [memoryview(self.out[i]) for i in range(n)]
         self.laps_seen = world.state[:, S_LAPS].copy()
+        self._scratch = (np.zeros(8), np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n),
+                         np.zeros(n, dtype=np.bool_))     # server_tick's (see TABLE)
         self.max_damage = float(max_damage)
         self.bad_datagrams = 0             # answers not well formed (applied as TORCS reads them)
         self.compiled = world.tick_args is not None
@@ -210,7 +215,7 @@ class ServerTick:
         arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
                   self.steps, self.cars, *w[1:7], *w[10:15], *w[15], w[16], *w[18:], geo, runs, piece_run, angles,
                   origin, active, *focus, self.due, self.flat, is_int, lit, lit_end, self.out, self.out_len,
-                  self.laps_seen)
+                  self.laps_seen, *self._scratch)
         self._arrays = arrays             # alive as long as the table is used
         # the state and its scratch copy go as arguments: typed as World.step's callers see them
         # (C order for one car), so the physics kernels are compiled once for both

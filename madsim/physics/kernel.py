@@ -42,15 +42,17 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_TR, C_VISC,
     C_VISC_MAX, C_W0, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
-    FLAG_START, P_A0, P_ARC, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CA0, P_CURV,
-    P_CX, P_CY, P_FLAG, P_INVLEN, P_KIND, P_LEN, P_R, P_S0, P_SA0, P_SAMESURF, P_SSURF_L,
-    P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_X0, P_Y0,
+    FLAG_START, P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV,
+    P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SSURF_L,
+    P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R,
     P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
     S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ,
     S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_SPIN,
     S_X, S_Y, S_YAW, S_Z, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
     U_GEAR, U_STEER,
 )
+from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
+from madsim.tracks.kernels import wrap_angle as _wrap
 
 G = 9.80665          # m/s^2, as TORCS
 V_REG = 2.0          # m/s, slip denominator floor (see module docstring)
@@ -67,11 +69,6 @@ NO_REFCOUNT = {"_nrt": False}
 are kept. numba keeps them with atomic increments and decrements at every array alias, call
 and inlined body; in the sub-step loop they cost ~20 % of `advance_car` (perf: `lock inc` in
 NRT_incref / NRT_decref). Arrays passed in stay owned by the caller; the floats are unchanged."""
-
-
-@numba.njit(inline="always", **_JIT)
-def _wrap(a):
-    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
 @numba.njit(inline="always", **_JIT)
@@ -136,47 +133,6 @@ def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
     fs = f / s
     cx, cy = sx / s, sy / s
     return -fs * sx, -fs * sy, (max(df, 0.0) * cx * cx + fs * cy * cy) / dx
-
-
-@numba.njit(inline="always", **_JIT)
-def _piece_local(pt, p, x, y):
-    """(q, n, cos h, sin h) of point (x, y) in piece p: centre-line distance from the piece start
-    (m), lateral offset (left +) and the tangent direction at the projection."""
-    kind = pt[p, P_KIND]
-    if kind == 0.0:
-        ca, sa = pt[p, P_CA0], pt[p, P_SA0]
-        dx, dy = x - pt[p, P_X0], y - pt[p, P_Y0]
-        return dx * ca + dy * sa, dy * ca - dx * sa, ca, sa
-    r, d, a0 = pt[p, P_R], pt[p, P_ARC], pt[p, P_A0]
-    dx, dy = x - pt[p, P_CX], y - pt[p, P_CY]
-    dist = math.sqrt(dx * dx + dy * dy)
-    inv = 1.0 / dist if dist > 0.0 else 0.0
-    phi = math.atan2(dy, dx)
-    if kind == 1.0:
-        q = 0.5 * d + _wrap(phi - (a0 - 0.5 * math.pi) - 0.5 * d)
-        return q * r, r - dist, -dy * inv, dx * inv
-    q = 0.5 * d + _wrap((a0 + 0.5 * math.pi) - 0.5 * d - phi)
-    return q * r, dist - r, dy * inv, -dx * inv
-
-
-@numba.njit(inline="always", **_JIT)
-def _locate(pt, p, x, y):
-    """TORCS's walk from piece p to the piece holding the projection of (x, y) (track spec
-    10.1: once it moves in one direction it never turns back). Returns (p, q, n, cos h, sin h)."""
-    npieces = pt.shape[0]
-    q, n, ch, sh = _piece_local(pt, p, x, y)
-    direction = 0
-    for _ in range(npieces):
-        if q < 0.0 and direction <= 0:
-            direction = -1
-            p = p - 1 if p > 0 else npieces - 1
-        elif q > pt[p, P_LEN] and direction >= 0:
-            direction = 1
-            p = p + 1 if p < npieces - 1 else 0
-        else:
-            break
-        q, n, ch, sh = _piece_local(pt, p, x, y)
-    return p, q, n, ch, sh
 
 
 @numba.njit(inline="always", **_JIT)

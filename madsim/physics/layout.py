@@ -6,6 +6,9 @@ columns in order so that `World` can document and expose them. Units are SI (m, 
 
 from __future__ import annotations
 
+from madsim.tracks.kernels import (GEO_A0, GEO_ARC, GEO_CA0, GEO_COLUMNS, GEO_CX, GEO_CY, GEO_KIND,
+                                   GEO_LEN, GEO_R, GEO_S0, GEO_SA0, GEO_X0, GEO_Y0, N_GEO)
+
 
 def _enum(names: str) -> tuple[str, ...]:
     return tuple(names.split())
@@ -128,18 +131,20 @@ DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
  C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
  C_HALF_LEN, C_HALF_WID, C_REACH, C_LAT_F, C_LAT_R) = range(_n)
 
-# --- per-piece track table (P, N_PIECE) float64, built by `trackparams.piece_table` -----------
-PIECE_COLUMNS = _enum(
-    "kind s0 length radius arc a0 cos_a0 sin_a0 x0 y0 cx cy "   # geometry: kind 0 straight, 1 left, 2 right
+# --- per-piece track table (P, N_PIECE) float64, built by `tables.piece_table` ----------------
+# It starts with the track's own piece geometry (`tracks.kernels.GEO_COLUMNS`, Track.geo), so
+# the one piece walk (`tracks.kernels.locate`) reads either table.
+PIECE_COLUMNS = GEO_COLUMNS + _enum(
     "zr0 zr1 bank0 bank1 tanbank0 surface "
     "border_w_r border_w_l border_surf_r border_surf_l side_w0_r side_w1_r side_w0_l side_w1_l "
     "side_surf_r side_surf_l barrier_surf_r barrier_surf_l flag same_surface inv_length curvature"
 )
 P = {name: i for i, name in enumerate(PIECE_COLUMNS)}
-(P_KIND, P_S0, P_LEN, P_R, P_ARC, P_A0, P_CA0, P_SA0, P_X0, P_Y0, P_CX, P_CY,
- P_ZR0, P_ZR1, P_B0, P_B1, P_TB0, P_SURF,
+(P_KIND, P_S0, P_LEN, P_R, P_ARC, P_X0, P_Y0, P_A0, P_CX, P_CY, P_CA0, P_SA0) = (
+    GEO_KIND, GEO_S0, GEO_LEN, GEO_R, GEO_ARC, GEO_X0, GEO_Y0, GEO_A0, GEO_CX, GEO_CY, GEO_CA0, GEO_SA0)
+(P_ZR0, P_ZR1, P_B0, P_B1, P_TB0, P_SURF,
  P_BW_R, P_BW_L, P_BSURF_R, P_BSURF_L, P_SW0_R, P_SW1_R, P_SW0_L, P_SW1_L,
- P_SSURF_R, P_SSURF_L, P_WSURF_R, P_WSURF_L, P_FLAG, P_SAMESURF, P_INVLEN, P_CURV) = range(len(PIECE_COLUMNS))
+ P_SSURF_R, P_SSURF_L, P_WSURF_R, P_WSURF_L, P_FLAG, P_SAMESURF, P_INVLEN, P_CURV) = range(N_GEO, len(PIECE_COLUMNS))
 N_PIECE = len(PIECE_COLUMNS)
 FLAG_LAST, FLAG_START = 1.0, 2.0
 

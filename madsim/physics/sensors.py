@@ -14,6 +14,7 @@ import numpy as np
 
 from madsim.facts import SCR_CPP_CLIENT_ANGLES_DEG, SCR_FIELDS
 from madsim.physics import layout as L
+from madsim.physics.kernel import NO_REFCOUNT
 from madsim.tracks.rays import cast_ray
 
 SCR_DEFAULT_ANGLES_DEG = SCR_CPP_CLIENT_ANGLES_DEG   # a suite's angles before set_angles
@@ -80,43 +81,41 @@ class SensorFrame:
         return out
 
 
-@numba.njit(cache=True)
-def opponents_kernel(idx, x, y, yaw, active, max_range, out):
-    """out[k, 0..35] = nearest distance of another active car in each 10-degree sector around
-    car idx[k]; bearing positive clockwise from the heading, sector 0 starts dead astern
-    (SCR section 5.2); cars at 0 or >= max_range m are skipped; empty sectors = max_range."""
-    n = x.shape[0]
-    for k in range(idx.shape[0]):
-        i = idx[k]
-        for a in range(36):
-            out[k, a] = max_range
-        for j in range(n):
-            if j == i or not active[j]:
-                continue
-            dx = x[j] - x[i]
-            dy = y[j] - y[i]
-            d = math.sqrt(dx * dx + dy * dy)
-            if d <= 0.0 or d >= max_range:
-                continue
-            beta = math.degrees(yaw[i] - math.atan2(dy, dx))
-            beta = beta - 360.0 * math.floor((beta + 180.0) / 360.0)   # [-180, 180)
-            if beta <= -180.0:
-                beta += 360.0                                            # (-180, 180]
-            sector = int(math.floor((beta + 180.0) / 10.0))
-            if sector >= 36:
-                continue  # dead astern after wrapping: SCR drops it
-            if d < out[k, sector]:
-                out[k, sector] = d
+@numba.njit(cache=True, inline="always")
+def _opponent_sectors(st, i, active, max_range, row):
+    """row[O_OPP + a] = nearest distance of another active car in 10-degree sector a around car i
+    (poses from the World state st); bearing positive clockwise from the heading, sector 0
+    starts dead astern (SCR section 5.2); cars at 0 or >= max_range m are skipped; empty
+    sectors = max_range."""
+    for a in range(36):
+        row[O_OPP + a] = max_range
+    xi, yi, yawi = st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW]
+    for j in range(st.shape[0]):
+        if j == i or not active[j]:
+            continue
+        dx = st[j, L.S_X] - xi
+        dy = st[j, L.S_Y] - yi
+        d = math.sqrt(dx * dx + dy * dy)
+        if d <= 0.0 or d >= max_range:
+            continue
+        beta = math.degrees(yawi - math.atan2(dy, dx))
+        beta = beta - 360.0 * math.floor((beta + 180.0) / 360.0)   # [-180, 180)
+        if beta <= -180.0:
+            beta += 360.0                                            # (-180, 180]
+        sector = int(math.floor((beta + 180.0) / 10.0))
+        if sector >= 36:
+            continue  # dead astern after wrapping: SCR drops it
+        if d < row[O_OPP + sector]:
+            row[O_OPP + sector] = d
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, **NO_REFCOUNT)
 def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_pos, dist_origin,
                   active, max_range, out):
     """out[k] = the 79 wire-order SCR values of car cars[k] (focus left at -1, no noise) from the
     World state `st` (layout.STATE_COLUMNS): units converted, rangefinders cast exactly (-1 off
-    the road), opponents by sector. One pass, no allocation."""
-    opp = np.empty((1, 36))
-    one = np.empty(1, dtype=np.int64)
+    the road), opponents by sector. One pass; it allocates nothing, so it runs without numba's
+    reference counting (`kernel.NO_REFCOUNT`). `geo` (the track's piece table) is not read."""
     for k in range(cars.shape[0]):
         i = cars[k]
         row = out[k]
@@ -132,10 +131,7 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
         row[O_FUEL] = st[i, L.S_FUEL]
         row[O_GEAR] = st[i, L.S_GEAR]
         row[O_LASTLAP] = st[i, L.S_LASTLAP]
-        one[0] = i
-        opponents_kernel(one, st[:, L.S_X], st[:, L.S_Y], st[:, L.S_YAW], active, max_range, opp)
-        for j in range(36):
-            row[O_OPP + j] = opp[0, j]
+        _opponent_sectors(st, i, active, max_range, row)
         row[O_RACEPOS] = race_pos[i]
         row[O_RPM] = st[i, L.S_WE] * 10.0
         row[O_SX] = st[i, L.S_VX] * MS_TO_KMH
@@ -152,8 +148,8 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
         else:
             for j in range(19):
                 row[O_TRACK + j] = -1.0
-        for k in range(4):
-            row[O_WSPIN + k] = st[i, L.S_SPIN + k]
+        for w in range(4):
+            row[O_WSPIN + w] = st[i, L.S_SPIN + w]
         row[O_Z] = st[i, L.S_Z] - st[i, L.S_ROADZ]
         for j in range(5):
             row[O_FOCUS + j] = -1.0
@@ -228,7 +224,7 @@ class FocusState:
 
     def request(self, cars: np.ndarray, focus_deg: np.ndarray) -> None:
         """Store the focus requests of this tick's control messages (used for the next state)."""
-        f = np.ascontiguousarray(np.broadcast_to(np.asarray(focus_deg, dtype=np.float64), cars.shape))
+        f = np.array(np.broadcast_to(np.asarray(focus_deg, dtype=np.float64), cars.shape))   # writable, as the compiled tick passes it (no 2nd compile)
         focus_request(np.ascontiguousarray(cars, dtype=np.int64), f, self.requested_deg,
                       self.next_allowed_s, self.earliest)
 

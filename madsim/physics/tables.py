@@ -151,16 +151,7 @@ def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     w = track.width
     npc = p.shape[0]
     pt = np.zeros((npc, L.N_PIECE))
-    pt[:, L.P_KIND] = p[:, COL["kind"]]
-    pt[:, L.P_S0] = p[:, COL["s0"]]
-    pt[:, L.P_LEN] = p[:, COL["length"]]
-    pt[:, L.P_R] = p[:, COL["radius"]]
-    pt[:, L.P_ARC] = p[:, COL["arc"]]
-    pt[:, L.P_A0] = p[:, COL["a0"]]
-    pt[:, L.P_CA0] = np.cos(p[:, COL["a0"]])
-    pt[:, L.P_SA0] = np.sin(p[:, COL["a0"]])
-    for dst, src in ((L.P_X0, "x0"), (L.P_Y0, "y0"), (L.P_CX, "cx"), (L.P_CY, "cy")):
-        pt[:, dst] = p[:, COL[src]]
+    pt[:, :L.N_GEO] = track.geo
     pt[:, L.P_ZR0] = p[:, COL["zr0"]]
     pt[:, L.P_ZR1] = p[:, COL["zr1"]]
     pt[:, L.P_B0] = np.arctan2(p[:, COL["zl0"]] - p[:, COL["zr0"]], w)

@@ -8,6 +8,7 @@ where something is near goes back to Python (the pymunk narrow phase, `World.fin
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 from madsim.physics.contact_kernels import advance_until_near
 from madsim.physics.kernel import check_controls, slipstream
@@ -15,6 +16,9 @@ from madsim.physics.layout import S_DIST, S_LAPS
 
 NONFINITE = -1
 """`step_world`'s answer when a control is not finite (nothing was changed)."""
+FIRST_CAR = np.int64(0)
+"""An int64, not the literal 0: numba compiles a callee once per literal argument value, and
+`advance_until_near` (~5 s to compile) is also called with a variable (World.finish_tick)."""
 
 
 @numba.njit(cache=True)
@@ -57,7 +61,7 @@ def step_world(u, nsub, st, cp, curve_w, curve_t, pt, surf, tsc, dt, fuel_on, le
     for i in range(n):
         wall[i] = False
         car[i] = False
-    k = advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, 0, nsub, dt, fuel_on,
+    k = advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, FIRST_CAR, nsub, dt, fuel_on,
                            x, y, yaw, piece, bp, near, snap, path, turn)
     if near[0] == 0 and n > 1:
         race_positions(st, race_pos)

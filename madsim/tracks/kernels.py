@@ -1,7 +1,10 @@
 """Compiled track queries: point -> (s, n) on the piece geometry.
 
-Pieces are passed as a (P, 10) float64 array `geo` with columns GEO_* below. All kernels are
-plain loops compiled with numba (cache=True) and also run as ordinary Python for debugging.
+Pieces are passed as a (P, N_GEO) float64 array `geo` with columns GEO_* below (or any table
+that starts with them: the physics kernels' piece table, `physics.layout.PIECE_COLUMNS`, so the
+car kernel, the contact kernels and the track's own queries share one piece walk, `locate`).
+All kernels are plain loops compiled with numba (cache=True) and also run as ordinary Python
+for debugging.
 """
 
 from __future__ import annotations
@@ -11,58 +14,70 @@ import math
 import numba
 import numpy as np
 
-GEO_KIND, GEO_S0, GEO_LEN, GEO_R, GEO_ARC, GEO_X0, GEO_Y0, GEO_A0, GEO_CX, GEO_CY = range(10)
-GEO_COLUMNS = ("kind", "s0", "length", "radius", "arc", "x0", "y0", "a0", "cx", "cy")
+GEO_COLUMNS = ("kind", "s0", "length", "radius", "arc", "x0", "y0", "a0", "cx", "cy", "cos_a0", "sin_a0")
+"""kind 0 straight / 1 left / 2 right; s0 (m from the start line), length (m, along the centre
+line), radius (m) and arc (rad) of a curve; x0, y0 (m) and heading a0 (rad) at the piece start;
+cx, cy (m) the curve's centre; cos a0 and sin a0 (numpy's, computed once)."""
+(GEO_KIND, GEO_S0, GEO_LEN, GEO_R, GEO_ARC, GEO_X0, GEO_Y0, GEO_A0, GEO_CX, GEO_CY, GEO_CA0,
+ GEO_SA0) = range(len(GEO_COLUMNS))
+N_GEO = len(GEO_COLUMNS)
+
+_JIT = {"cache": True, "error_model": "numpy"}
 
 
-@numba.njit(cache=True, inline="always")
-def _wrap(a):
+@numba.njit(inline="always", **_JIT)
+def wrap_angle(a):
+    """Radians wrapped into [-pi, pi)."""
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
-@numba.njit(cache=True)
-def piece_local(geo, i, px, py):
-    """(q, n) of point (px, py) in piece i: q = centre-line distance from the piece start (m),
-    n = signed lateral offset from the centre line (m, left positive)."""
-    kind = geo[i, GEO_KIND]
-    a0 = geo[i, GEO_A0]
+@numba.njit(inline="always", **_JIT)
+def piece_local(geo, p, x, y):
+    """(q, n, cos h, sin h) of point (x, y) in piece p: centre-line distance from the piece start
+    (m), lateral offset (m, left +) and the tangent direction at the projection."""
+    kind = geo[p, GEO_KIND]
     if kind == 0.0:
-        dx = px - geo[i, GEO_X0]
-        dy = py - geo[i, GEO_Y0]
-        c, s = math.cos(a0), math.sin(a0)
-        return dx * c + dy * s, -dx * s + dy * c
-    r = geo[i, GEO_R]
-    d = geo[i, GEO_ARC]
-    dx = px - geo[i, GEO_CX]
-    dy = py - geo[i, GEO_CY]
-    phi = math.atan2(dy, dx)
+        ca, sa = geo[p, GEO_CA0], geo[p, GEO_SA0]
+        dx, dy = x - geo[p, GEO_X0], y - geo[p, GEO_Y0]
+        return dx * ca + dy * sa, dy * ca - dx * sa, ca, sa
+    r, d, a0 = geo[p, GEO_R], geo[p, GEO_ARC], geo[p, GEO_A0]
+    dx, dy = x - geo[p, GEO_CX], y - geo[p, GEO_CY]
     dist = math.sqrt(dx * dx + dy * dy)
+    inv = 1.0 / dist if dist > 0.0 else 0.0
+    phi = math.atan2(dy, dx)
     if kind == 1.0:
-        q = d / 2.0 + _wrap(phi - (a0 - math.pi / 2.0) - d / 2.0)
-        return q * r, r - dist
-    q = d / 2.0 + _wrap((a0 + math.pi / 2.0) - d / 2.0 - phi)
-    return q * r, dist - r
+        q = 0.5 * d + wrap_angle(phi - (a0 - 0.5 * math.pi) - 0.5 * d)
+        return q * r, r - dist, -dy * inv, dx * inv
+    q = 0.5 * d + wrap_angle((a0 + 0.5 * math.pi) - 0.5 * d - phi)
+    return q * r, dist - r, dy * inv, -dx * inv
 
 
-@numba.njit(cache=True)
-def locate_from(geo, i, px, py):
-    """Walk from piece i to the piece containing the projection of (px, py), as TORCS does
-    (once the walk moves in one direction it never turns back). Returns (piece, q, n)."""
+@numba.njit(inline="always", **_JIT)
+def locate(geo, p, x, y):
+    """TORCS's walk from piece p to the piece holding the projection of (x, y) (track spec
+    10.1: once it moves in one direction it never turns back). Returns (p, q, n, cos h, sin h)
+    as `piece_local`. Inlined into its callers (the car kernel's sub-step loop)."""
     npieces = geo.shape[0]
-    q, n = piece_local(geo, i, px, py)
+    q, n, ch, sh = piece_local(geo, p, x, y)
     direction = 0
     for _ in range(npieces):
         if q < 0.0 and direction <= 0:
             direction = -1
-            j = i - 1 if i > 0 else npieces - 1
-        elif q > geo[i, GEO_LEN] and direction >= 0:
+            p = p - 1 if p > 0 else npieces - 1
+        elif q > geo[p, GEO_LEN] and direction >= 0:
             direction = 1
-            j = i + 1 if i < npieces - 1 else 0
+            p = p + 1 if p < npieces - 1 else 0
         else:
             break
-        q2, n2 = piece_local(geo, j, px, py)
-        i, q, n = j, q2, n2
-    return i, q, n
+        q, n, ch, sh = piece_local(geo, p, x, y)
+    return p, q, n, ch, sh
+
+
+@numba.njit(**_JIT)
+def locate_from(geo, i, px, py):
+    """`locate` as a call: (piece, q, n) of (px, py), walking from piece i."""
+    p, q, n, _, _ = locate(geo, i, px, py)
+    return p, q, n
 
 
 @numba.njit(cache=True)

@@ -19,7 +19,11 @@ import numpy as np
 from madsim.tracks.build import COL, STRAIGHT
 
 RUN_KIND, RUN_X0, RUN_Y0, RUN_A0, RUN_LEN, RUN_R, RUN_CX, RUN_CY, RUN_ARC = range(9)
-RUN_COLS = 9
+RUN_C0, RUN_S0, RUN_C1, RUN_S1 = range(9, 13)
+"""Directions precomputed once per run (numpy's cos/sin; a ray crosses several runs, 19 rays
+per car per tick): a straight's (cos a0, sin a0) in C0, S0; an arc's radial unit vectors at its
+start (theta0 of `_arc_frame`) in C0, S0 and at its end (theta0 + sense arc) in C1, S1."""
+RUN_COLS = 13
 _SAME_TOL = 1e-6
 
 
@@ -44,7 +48,16 @@ def build_runs(pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         runs.append([kind, p[COL["x0"]], p[COL["y0"]], p[COL["a0"]], p[COL["length"]], p[COL["radius"]],
                      p[COL["cx"]], p[COL["cy"]], p[COL["arc"]]])
         piece_run[i] = len(runs) - 1
-    return np.ascontiguousarray(np.array(runs, dtype=np.float64)), piece_run
+    table = np.zeros((len(runs), RUN_COLS))
+    table[:, :RUN_C0] = np.array(runs, dtype=np.float64).reshape(len(runs), RUN_C0)
+    kind, a0 = table[:, RUN_KIND], table[:, RUN_A0]
+    left = kind == 1.0
+    theta0 = np.where(left, a0 - math.pi / 2.0, a0 + math.pi / 2.0)    # as _arc_frame
+    theta1 = theta0 + np.where(left, 1.0, -1.0) * table[:, RUN_ARC]
+    start = np.where(kind == STRAIGHT, a0, theta0)
+    table[:, RUN_C0], table[:, RUN_S0] = np.cos(start), np.sin(start)
+    table[:, RUN_C1], table[:, RUN_S1] = np.cos(theta1), np.sin(theta1)
+    return table, piece_run
 
 
 def _wrap(a: float) -> float:
@@ -86,8 +99,7 @@ def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
         ox = px + t * dx
         oy = py + t * dy
         if runs[j, RUN_KIND] == 0.0:
-            a0 = runs[j, RUN_A0]
-            c, s = math.cos(a0), math.sin(a0)
+            c, s = runs[j, RUN_C0], runs[j, RUN_S0]
             rx, ry = ox - runs[j, RUN_X0], oy - runs[j, RUN_Y0]
             q0 = rx * c + ry * s
             n0 = -rx * s + ry * c
@@ -115,7 +127,7 @@ def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
         else:
             cx, cy, r = runs[j, RUN_CX], runs[j, RUN_CY], runs[j, RUN_R]
             d = runs[j, RUN_ARC]
-            theta0, sense = _arc_frame(runs, j)
+            sense = _arc_frame(runs, j)[1]
             rx, ry = ox - cx, oy - cy
             b = dx * rx + dy * ry
             cc = rx * rx + ry * ry
@@ -136,8 +148,10 @@ def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
             for which in (1, -1):
                 if (which == 1 and entered == -1) or (which == -1 and entered == 1):
                     continue
-                ang = theta0 + sense * d if which == 1 else theta0
-                ux, uy = math.cos(ang), math.sin(ang)
+                if which == 1:      # the end line (angle theta0 + sense d)
+                    ux, uy = runs[j, RUN_C1], runs[j, RUN_S1]
+                else:
+                    ux, uy = runs[j, RUN_C0], runs[j, RUN_S0]
                 den = dx * uy - dy * ux
                 if den == 0.0:
                     continue

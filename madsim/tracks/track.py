@@ -136,7 +136,7 @@ class Track:
 
     @property
     def geo(self) -> np.ndarray:
-        """(P, 10) piece geometry for compiled kernels (columns: kernels.GEO_COLUMNS)."""
+        """(P, N_GEO) piece geometry for compiled kernels (columns: kernels.GEO_COLUMNS)."""
         return self._geo
 
     @property
@@ -400,8 +400,13 @@ def _piece_end(row: np.ndarray) -> tuple[float, float, float]:
 
 
 def _geo_of(p: np.ndarray) -> np.ndarray:
-    cols = [COL[c] for c in kernels.GEO_COLUMNS]
-    return np.ascontiguousarray(p[:, cols])
+    """The (P, N_GEO) piece table of the compiled walk (`kernels.GEO_COLUMNS`)."""
+    geo = np.empty((p.shape[0], kernels.N_GEO))
+    for k, name in enumerate(kernels.GEO_COLUMNS[:kernels.GEO_CA0]):
+        geo[:, k] = p[:, COL[name]]
+    geo[:, kernels.GEO_CA0] = np.cos(p[:, COL["a0"]])
+    geo[:, kernels.GEO_SA0] = np.sin(p[:, COL["a0"]])
+    return geo
 
 
 def _sample(p: np.ndarray, w: float, geo: np.ndarray) -> dict[str, np.ndarray]:

@@ -140,3 +140,28 @@ def test_hinted_locate_resolves_the_wheel_2_bridge():
     x, y, _, _ = t.pose(np.full(50, 2384.0), np.linspace(-4, 4, 50))
     s_plain, _ = t.locate(x, y)
     assert np.any(np.abs(s_plain - 2384.0) > 100)
+
+
+def test_one_piece_table_and_walk_for_track_and_car_kernels():
+    """The physics piece table starts with the track's geometry table, so the car kernel's walk
+    (tracks.kernels.locate on the piece table) and the track's (on Track.geo) agree bit for bit."""
+    from madsim.physics import layout as L
+    from madsim.physics.tables import piece_table
+    from madsim.tracks import kernels as K
+
+    track = load_track("g-track-1")
+    pt = piece_table(track)[0]
+    assert L.PIECE_COLUMNS[:K.N_GEO] == K.GEO_COLUMNS
+    assert np.array_equal(pt[:, :K.N_GEO], track.geo)
+    a0 = track.geo[:, K.GEO_A0]
+    assert np.array_equal(track.geo[:, K.GEO_CA0], np.cos(a0))
+    rng = np.random.default_rng(3)
+    s = rng.uniform(0, track.length, 200)
+    x, y, _, _ = track.pose(s, rng.uniform(-15, 15, 200))
+    for k in range(200):
+        start = int(rng.integers(track.geo.shape[0]))
+        on_track = K.locate_from(track.geo, start, x[k], y[k])
+        on_physics = K.locate_from(pt, start, x[k], y[k])
+        assert on_track == on_physics
+        p, q, n, ch, sh = getattr(K.locate, "py_func", K.locate)(pt, start, x[k], y[k])
+        assert (p, q, n) == on_track and abs(ch * ch + sh * sh - 1.0) < 1e-12
