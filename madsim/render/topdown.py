@@ -112,6 +112,7 @@ class Renderer:
         self._palette = palette(track)
         self._lines = {"edge": [track.edge_polyline(s) for s in ("left", "right")],
                        "barrier": [track.barrier_polyline(s) for s in ("left", "right")]}
+        self._pit_walls = track.pit_wall_quads()[0]     # (W, 4, 2) solid pit walls, m
         self._tiles: OrderedDict = OrderedDict()
         w, h = self.size
         self._rgb = np.zeros((h, w, 3), dtype=np.uint8)
@@ -158,7 +159,8 @@ class Renderer:
         return tile
 
     def _draw_lines(self, tile: np.ndarray, ppm: float, gx: int, gy: int) -> None:
-        """Road edges (at zooms of 2 px/m and more) and barriers as anti-aliased lines."""
+        """Road edges (at zooms of 2 px/m and more) and barriers as anti-aliased lines; pit walls as
+        filled quads."""
         pg = self.pg
         surf = pg.image.frombuffer(tile, (tile.shape[1], tile.shape[0]), "RGB")
         kinds = [("barrier", BARRIER_RGB, 2 if ppm >= 3.0 else 1)]
@@ -173,6 +175,14 @@ class Renderer:
                         pg.draw.aalines(surf, rgb, False, run)
                     else:
                         pg.draw.lines(surf, rgb, False, run, width)
+        if self._pit_walls.shape[0]:       # solid pit walls, filled in the barrier colour
+            walls = self._pit_walls
+            quads = np.stack([walls[..., 0] * ppm - gx, -walls[..., 1] * ppm - gy], axis=-1)
+            h, w = tile.shape[:2]
+            near = ((quads[..., 0].max(axis=1) >= -1.0) & (quads[..., 0].min(axis=1) <= w + 1.0)
+                    & (quads[..., 1].max(axis=1) >= -1.0) & (quads[..., 1].min(axis=1) <= h + 1.0))
+            for quad in quads[near]:
+                pg.draw.polygon(surf, BARRIER_RGB, quad)
 
     def _compose(self, out: np.ndarray, ppm: float, ox: int, oy: int) -> None:
         """out (h, w, 3) = the static track at zoom ppm with out[0, 0] at global pixel (ox, oy)."""

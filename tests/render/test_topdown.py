@@ -184,3 +184,41 @@ def test_bad_arguments_are_refused(road, follow, make_world):
         follow.frame(CarPoses.from_world(w), ids=["a", "b"])
     with pytest.raises(IndexError, match="camera car"):
         follow.frame(CarPoses.from_world(w), highlight=4)
+
+
+def test_pit_walls_are_drawn_solid_in_the_barrier_colour(tmp_path, sedan):
+    """A straight with a 1 m wall-style left border and a side beyond it (a pit wall), then the
+    same border in style `plan`: the follow camera shows the barrier colour across the pit
+    wall's strip and road-side colours on the plain border at the same offset."""
+    from trackfiles import segment, track_xml
+
+    from madsim.physics.world import World
+    from madsim.render.topdown import BARRIER_RGB
+    from madsim.tracks import load_track
+
+    def seg(name, style):
+        sub = (f'<section name="Left Border"><attnum name="width" val="1"/>'
+               f'<attnum name="height" val="1"/><attstr name="style" val="{style}"/></section>'
+               f'<section name="Left Side"><attnum name="start width" val="5"/>'
+               f'<attnum name="end width" val="5"/></section>')
+        text = segment(name, "str", lg=200.0)
+        return text[: -len("</section>")] + sub + "</section>"
+
+    path = tmp_path / "pit.xml"
+    path.write_text(track_xml([seg("a", "wall"), seg("b", "plan")], width=10.0, name="pit"),
+                    encoding="utf-8")
+    track = load_track(path)
+    assert track.pit_wall_quads()[0].shape[0] > 0
+    r = Renderer(track, size=(W, H), camera=Camera("follow", ppm=PPM), ids=False)
+    try:
+        for s, want_wall in ((100.0, True), (300.0, False)):
+            w = World(track, [sedan], np.random.default_rng(0), contact=False)
+            w.reset(np.array([[s, 0.0, 0.0]]))
+            img = r.frame(CarPoses.from_world(w))
+            for n in (5.3, 5.5, 5.7):          # inside the border strip, 5-6 m left of centre
+                x, y, _, _ = (float(v) for v in track.pose(s, n))
+                px, py = r.view.to_screen(x, y)
+                got = colour_at(img, px, py)
+                assert (got == BARRIER_RGB) == want_wall, (s, n, got)
+    finally:
+        r.close()
