@@ -31,10 +31,12 @@ and returns a `ContactReport` (per car: wall contact, car contact, damage added;
 3. Response (compiled; TORCS rules, spec torcs-car-format.md 4.12), in a canonical order that
    does not depend on pymunk's internal order:
    - wall, per car and per wall direction, at the deepest point of the car inside the wall:
-     position pushed out by the penetration (+ `SLOP_M`); with vn = velocity of that point along
-     the wall normal n (pointing away from the wall; < 0 = into it) and p = the point relative
-     to the CG: `v -= n vn k_friction`, `r -= (n . p) vn k_friction / 10` (|r| <= 6 rad/s),
-     and when vn < 0 damage `k_damage (0.5 (c v.n)^2 + 0.005 |1 - c| V) x skill` (V =
+     position pushed out by the penetration (+ `SLOP_M`); with n = TORCS's barrier normal, the
+     track's lateral direction at that point (pointing away from the wall; pymunk's own normal
+     is not used: at a joint of the barrier polyline it can run along the track and brake a
+     scraping car by 10-35 m/s), vn = velocity of that point along n (< 0 = into it), p = the
+     point relative to the CG: `v -= n vn k_friction`, `r -= (n . p) vn k_friction / 10` (|r|
+     <= 6 rad/s), and when vn < 0 damage `k_damage (0.5 (c v.n)^2 + 0.005 |1 - c| V) x skill` (V =
      max(1, |v|), c = v.n / V) and `v -= n vn rebound`. So the into-wall speed is multiplied
      by (1 - k_friction - rebound) per contact step (0.5 for TORCS's barrier: friction 0,
      rebound 0.5; TORCS's "friction" damps the normal speed) and the tangential speed is kept.
@@ -66,11 +68,13 @@ Differences from TORCS, on purpose: damage is a float (TORCS truncates each hit 
 wall direction responds once per step (TORCS once per corner, with stale corner velocities);
 cars are separated fully, not by at most 5 cm; walls are pymunk segments, so the side of a box
 hits a convex wall corner (TORCS tests corners only), with TORCS's exact corner test as the
-safety net. Boxes are centred on (x, y) (TORCS's CG offset in the body is ignored). pymunk is
-2-D: contacts between cars far apart along the track, and barrier contacts whose car point is
-well inside the car's own barrier lines, are ignored (bridges); pit walls are not told apart by
-level, and their height is not used. Cars with a non-finite pose are
-ignored.
+safety net; the barrier normal is the lateral direction at the contact point (TORCS: per track
+segment, normal to the chord of its outermost side, so on a curve it is off by up to half a
+segment's angle and turns in steps). Boxes are centred on (x, y) (TORCS's CG offset in the
+body is ignored). pymunk is 2-D: contacts between cars far apart along the track, and barrier
+contacts whose car point is well inside the car's own barrier lines, are ignored (bridges); pit
+walls are not told apart by level, and their height is not used. Cars with a non-finite pose
+are ignored.
 """
 
 from __future__ import annotations

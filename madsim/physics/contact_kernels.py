@@ -512,14 +512,19 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
             px, py = f[off + 5 * best], f[off + 1 + 5 * best]
             if cnt == 2 and abs(f[6] - f[11]) < 1e-9:   # flat contact: middle of the two points
                 px, py = 0.5 * (f[off] + f[off + 5]), 0.5 * (f[off + 1] + f[off + 6])
+            nx, ny = sgn * nx, sgn * ny
             if mat[m, 3] == 0.0:      # a barrier (pit walls are hit from either side)
                 excess, sx, sy = _point_excess(geo, bar, piece[i], px, py)
-                if excess < -OTHER_LEVEL_M or sgn * nx * sx + sgn * ny * sy <= 0.0:
+                dot = nx * sx + ny * sy
+                if excess < -OTHER_LEVEL_M or dot <= 0.0:
                     continue     # another level's wall, or seen from behind: the projection handles it
-            elif not _pit_cap_ok(geo, bar, piece[i], px, py, sgn * nx, sgn * ny):
+                # TORCS's barrier normal: the track's lateral direction there, never the normal
+                # pymunk found at a joint of the polyline; the depth along it
+                nx, ny, dmax = sx, sy, max(excess, dmax * dot)
+            elif not _pit_cap_ok(geo, bar, piece[i], px, py, nx, ny):
                 continue         # a seam between two segments of one pit wall's face
             ri[nrec], rk[nrec], ro[nrec] = i, 0, m
-            rf[nrec, 0], rf[nrec, 1], rf[nrec, 2], rf[nrec, 3], rf[nrec, 4] = sgn * nx, sgn * ny, px, py, dmax
+            rf[nrec, 0], rf[nrec, 1], rf[nrec, 2], rf[nrec, 3], rf[nrec, 4] = nx, ny, px, py, dmax
         else:
             continue
         nrec += 1

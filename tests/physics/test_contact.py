@@ -266,6 +266,32 @@ def test_corner_hit_with_spin_follows_the_torcs_rule(oval):
     assert corner_excess(oval, st[0], st[1], st[2]) <= 0.0
 
 
+def test_sliding_along_a_curved_barrier_never_catches_on_its_joints(oval):
+    """A box pressed 1 cm into the outer (right) barrier of the oval's first bend (R 150 m, a
+    polyline with a joint every ~1 m), parallel to the track, 30 m/s along it and 0.5 m/s into
+    it, put every 5 cm over 35 m: every call is a wall contact, the speed into the wall does not
+    grow and the 30 m/s along the track is kept to 0.05 m/s (TORCS's barrier normal is the
+    track's lateral direction: spec 4.12 pushes along it only). Before the barrier normal was
+    taken from the track, pymunk's normal at a joint ran along the track and braked the box by
+    up to 10.5 m/s in one step here."""
+    checked = 0
+    solver = solver_for(oval, 1)
+    for s in np.arange(165.0, 200.0, 0.05):
+        _, right = oval.barrier_offsets_at(np.array([s]))
+        st = state(oval, s, -(right[0] - HW + 0.01))
+        h = st[2][0]
+        t, inward = np.array([math.cos(h), math.sin(h)]), np.array([-math.sin(h), math.cos(h)])
+        v = 30.0 * t - 0.5 * inward             # 0.5 m/s into the right barrier
+        st[3][:], st[4][:] = v[0], v[1]
+        rep = solver.resolve(*st, DT)
+        v_after = np.array([st[3][0], st[4][0]])
+        assert rep.wall[0], s
+        assert v_after @ t == pytest.approx(30.0, abs=0.05), s
+        assert v_after @ inward > -0.5, s
+        checked += 1
+    assert checked == 700
+
+
 def test_wall_damage_accumulates_per_contact_step(oval):
     """Nose-first into the left barrier at 300 km/h (friction 0, rebound 0.5): every contact
     step halves the into-wall speed, so contact k adds kd (0.5 (c v.n)^2 + 0.005 |1 - c| V) x
