@@ -35,19 +35,22 @@ import numba
 import numpy as np
 
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
-    C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
-    C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
-    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_LAT_F, C_LAT_R, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
-    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_REACT, C_RIDE0,
-    C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_TR, C_VISC,
-    C_VISC_MAX, C_W0, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
-    DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
+    C_A, C_ARB, C_B, C_BELL, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_COURSE,
+    C_CR, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_DRIVEN_F, C_DRIVEN_R, C_EBRAKE, C_EF, C_ER,
+    C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG, C_IFREE_F, C_IFREE_R, C_IXX, C_IYY,
+    C_IZZ, C_KB, C_KMU, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT, C_LOCK, C_MASS, C_MAXI, C_NCURVE,
+    C_OPLOAD, C_PACK, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_RIDE0, C_SCX2, C_SHIFT,
+    C_SKID, C_SPRING, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_VBUMP, C_VISC, C_VISC_MAX, C_VREB,
+    C_W0, C_WGANG, C_WGKX, C_WGKZ, C_WGX, C_WGZ, C_WMASS, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK,
+    C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
+    DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST,
     FLAG_START, P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV,
     P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SSURF_L,
     P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R,
     P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
-    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ,
-    S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_SPIN,
+    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_RIDE,
+    S_ROADZ, S_ROLL, S_ROLLA, S_ROLLR, S_PITCH, S_PITCHR, S_S, S_SHIFT, S_STEER, S_SUSP, S_THEAD,
+    S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_VZ, S_WE, S_WVZ, S_SPIN,
     S_X, S_Y, S_YAW, S_Z, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
     U_GEAR, U_STEER,
 )
@@ -58,6 +61,10 @@ G = 9.80665          # m/s^2, as TORCS
 V_REG = 2.0          # m/s, slip denominator floor (see module docstring)
 SLIP_MAX = 1.5       # TORCS's slip clamp
 YAW_RATE_MAX = 9.0   # rad/s, TORCS's cap
+ANGLE_MAX = 1.04     # rad, TORCS's limit of roll and pitch
+GROUND_REBOUND = 0.5
+"""Share of the body's downward speed removed per wheel on its packers (TORCS: the road
+surface's rebound, 0.5 for the roads; the surface table does not carry it, docs/physics.md)."""
 SPIN_AVG_SPEED = 3.0
 """m/s: above this car speed the wheel spins take TORCS's explicit step and the spins and tyre
 forces its two-sample averages (module docstring); at or below it, the implicit step."""
@@ -178,17 +185,153 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
-def ride_at_cg(st, i, cp):
-    """Ride height under the CG, m: each wheel's static ride height lowered by its load above
-    the static one over its wheel rate (spring x bellcrank^2), between the packers and the
-    suspension course (TORCS's suspension at rest under that load, spec 4.8), interpolated
-    from the axles to the CG."""
-    r = 0.0
+def _damper(v, c1, c2, v1):
+    """TORCS's two-slope damper (docs/physics.md): force, N, at travel speed v (m/s, + bump),
+    |v| capped at 10 m/s; slope c1 (N s/m) below the threshold v1 (m/s), c2 above, continuous."""
+    av = min(abs(v), 10.0)
+    f = c1 * av if av < v1 else c2 * av + (c1 - c2) * v1
+    return f if v >= 0.0 else -f
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_susp(st, i, cp, k, ride, dt):
+    """One sub-step of wheel k's suspension (docs/physics.md, after TORCS's wheel.cpp and
+    susp.cpp): the wheel follows its relative velocity, limited by the road (`ride`, m: body
+    reference above the road under the wheel), then the travel is clamped to the packers and to
+    the suspension course. Stores the travel (x bellcrank, m) and the wheel's relative velocity;
+    returns (suspension force, N; state: 0 free, 1 on the packers, 2 fully extended)."""
+    bell = cp[i, C_BELL + k]
+    pack = cp[i, C_PACK + k]
+    prex = st[i, S_SUSP + k]
+    wv = st[i, S_WVZ + k]
+    x = prex / bell - wv * dt
+    if ride < x:
+        x = ride
+        wv = 0.0
+    elif x < pack:
+        wv = 0.0
+    state = 0
+    if x < pack:
+        x = pack
+        state = 1
+    x *= bell
+    if x > cp[i, C_COURSE + k]:
+        x = cp[i, C_COURSE + k]
+        state = 2
+    v = (prex - x) / dt                       # + compressing (bump)
+    spring = max(cp[i, C_W0 + k] / bell - cp[i, C_SPRING + k] * (x - bell * cp[i, C_RIDE0 + k]), 0.0)
+    if v < 0.0:
+        damp = _damper(v, cp[i, C_DREB1 + k], cp[i, C_DREB2 + k], cp[i, C_VREB + k])
+    else:
+        damp = _damper(v, cp[i, C_DBUMP1 + k], cp[i, C_DBUMP2 + k], cp[i, C_VBUMP + k])
+    force = (spring + damp) * bell
+    if state == 2 and wv < 0.0:
+        wv = 0.0
+    st[i, S_SUSP + k] = x
+    st[i, S_WVZ + k] = wv - dt * force / cp[i, C_WMASS + k]
+    return force, state
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_loads(st, i, cp, gbx, gby, dt):
+    """Wheel loads of car i (N, wheel order) from its suspensions and anti-roll bars at the body's
+    present heave, roll and pitch (docs/physics.md); stores each wheel's ride height and
+    suspension state. The road under each wheel is the plane through the road height at the CG
+    with its gradient (gbx, gby: body frame). Returns (fz0, fz1, fz2, fz3, packer mask: bit k
+    set when wheel k sits on its packers)."""
+    zb = st[i, S_Z] - cp[i, C_H] - st[i, S_ROADZ]
+    sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
+    f0 = f1 = f2 = f3 = 0.0
+    e0 = e1 = e2 = e3 = 0
+    mask = 0
     for k in range(4):
-        rk = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / cp[i, C_KSPR + k]
-        rk = min(max(rk, cp[i, C_RIDEMIN + k]), cp[i, C_RIDEMAX + k])
-        r += rk * (cp[i, C_B] if k < 2 else cp[i, C_A])
-    return 0.5 * r / cp[i, C_L]
+        xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+        ride = zb - xk * sp + yk * sr - (gbx * xk + gby * yk)
+        st[i, S_RIDE + k] = ride
+        f, state = _wheel_susp(st, i, cp, k, ride, dt)
+        if state == 1:
+            mask |= 1 << k
+        if k == 0:
+            f0, e0 = f, state
+        elif k == 1:
+            f1, e1 = f, state
+        elif k == 2:
+            f2, e2 = f, state
+        else:
+            f3, e3 = f, state
+    # anti-roll bars: k_arb (x_left - x_right), + on the right wheel, - on the left
+    arb_f = cp[i, C_ARB] * (st[i, S_SUSP + 1] - st[i, S_SUSP])
+    arb_r = cp[i, C_ARB + 1] * (st[i, S_SUSP + 3] - st[i, S_SUSP + 2])
+    fz0 = max(arb_f + f0, 0.0) if e0 != 2 else 0.0
+    fz1 = max(-arb_f + f1, 0.0) if e1 != 2 else 0.0
+    fz2 = max(arb_r + f2, 0.0) if e2 != 2 else 0.0
+    fz3 = max(-arb_r + f3, 0.0) if e3 != 2 else 0.0
+    return fz0, fz1, fz2, fz3, mask
+
+
+@numba.njit(inline="always", **_JIT)
+def _body_vertical(st, i, cp, m, fz_sum, mx, my, mask, dt):
+    """Heave, roll and pitch of car i by one sub-step (TORCS's semi-implicit Euler, roll and
+    pitch limited to +-1.04 rad), then the packers' ground contact: each wheel on its packers
+    lifts the body to them and halves its downward speed (docs/physics.md).
+    fz_sum: vertical force on the body without gravity, N; mx, my: roll and pitch moments, N m."""
+    vz = st[i, S_VZ] + (fz_sum / m - G) * dt
+    wr = st[i, S_ROLLR] + mx / cp[i, C_IXX] * dt
+    wp = st[i, S_PITCHR] + my / cp[i, C_IYY] * dt
+    z = st[i, S_Z] + vz * dt
+    roll = min(max(st[i, S_ROLLA] + wr * dt, -ANGLE_MAX), ANGLE_MAX)
+    pitch = min(max(st[i, S_PITCH] + wp * dt, -ANGLE_MAX), ANGLE_MAX)
+    if mask:
+        for k in range(4):
+            if mask & (1 << k):
+                z += cp[i, C_PACK + k] - st[i, S_RIDE + k]
+                if vz < 0.0:
+                    vz -= GROUND_REBOUND * vz
+    st[i, S_VZ], st[i, S_ROLLR], st[i, S_PITCHR] = vz, wr, wp
+    st[i, S_Z], st[i, S_ROLLA], st[i, S_PITCH] = z, roll, pitch
+
+
+@numba.njit(**_JIT)
+def settle(st, cp, rows):
+    """Put the cars `rows` at rest on their suspensions: each wheel at its static ride height
+    under its present load (st's fz), the body's height, pitch and roll fitted to the four, the
+    vertical velocity that follows the road (docs/physics.md). Call after `refresh`."""
+    for j in range(rows.shape[0]):
+        i = rows[j]
+        cy, sy = math.cos(st[i, S_YAW]), math.sin(st[i, S_YAW])
+        gx, gy = st[i, S_GX], st[i, S_GY]
+        gbx, gby = gx * cy + gy * sy, gy * cy - gx * sy
+        h0 = h1 = h2 = h3 = 0.0
+        for k in range(4):
+            bell = cp[i, C_BELL + k]
+            r = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / (cp[i, C_SPRING + k] * bell * bell)
+            r = min(max(r, cp[i, C_PACK + k]), cp[i, C_COURSE + k] / bell)
+            hk = r + gbx * cp[i, C_WX + k] + gby * cp[i, C_WY + k]     # above the road at the CG
+            if k == 0:
+                h0 = hk
+            elif k == 1:
+                h1 = hk
+            elif k == 2:
+                h2 = hk
+            else:
+                h3 = hk
+        a, b = cp[i, C_A], cp[i, C_B]
+        hf, hr = 0.5 * (h0 + h1), 0.5 * (h2 + h3)
+        sp = (hr - hf) / (a + b)
+        sr = 0.5 * ((h1 - h0) / (cp[i, C_WY + 1] - cp[i, C_WY]) + (h3 - h2) / (cp[i, C_WY + 3] - cp[i, C_WY + 2]))
+        zb = (b * hf + a * hr) / (a + b)
+        st[i, S_PITCH] = math.asin(min(max(sp, -0.8), 0.8))
+        st[i, S_ROLLA] = math.asin(min(max(sr, -0.8), 0.8))
+        st[i, S_Z] = st[i, S_ROADZ] + cp[i, C_H] + zb
+        st[i, S_VZ] = gx * st[i, S_VXG] + gy * st[i, S_VYG]
+        st[i, S_ROLLR] = st[i, S_PITCHR] = 0.0
+        for k in range(4):
+            xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+            ride = zb - xk * sp + yk * sr - (gbx * xk + gby * yk)
+            bell = cp[i, C_BELL + k]
+            st[i, S_RIDE + k] = ride
+            st[i, S_SUSP + k] = min(max(ride, cp[i, C_PACK + k]) * bell, cp[i, C_COURSE + k])
+            st[i, S_WVZ + k] = 0.0
 
 
 @numba.njit(inline="always", **_JIT)
@@ -228,7 +371,6 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
     st[i, S_ROADZ] = z
-    st[i, S_Z] = z + cp[i, C_H]     # + the ride height: added once per call (refresh, advance_car)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
@@ -277,7 +419,6 @@ def refresh(st, cp, pt, surf, tsc, count_laps):
         st[i, S_VX] = st[i, S_VXG] * cy + st[i, S_VYG] * sy
         st[i, S_VY] = st[i, S_VYG] * cy - st[i, S_VXG] * sy
         track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y], cy, sy, count_laps)
-        st[i, S_Z] += ride_at_cg(st, i, cp)
 
 
 SLIP_MIN_SPEED = 10.0
@@ -537,11 +678,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
     wear = 1.0 + st[i, S_DAMAGE] / 10000.0
     dragk = st[i, S_DRAGK]
-    scx2, wing_drag = cp[i, C_SCX2] * wear * dragk * dragk, cp[i, C_WINGDRAG] * wear
+    scx2 = cp[i, C_SCX2] * wear * dragk * dragk
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
-    wdown_f, wdown_r = cp[i, C_WINGDOWN_F], cp[i, C_WINGDOWN_R]
     y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]
-    tf_share, tr_share = cp[i, C_LAT_F], cp[i, C_LAT_R]     # roll centres, roll stiffness
+    rc_f, rc_r = cp[i, C_RC], cp[i, C_RC + 1]                 # roll-centre heights
+    x0w, x1w, x2w, x3w = cp[i, C_WX], cp[i, C_WX + 1], cp[i, C_WX + 2], cp[i, C_WX + 3]
     toe0, toe1 = cp[i, C_TOE], cp[i, C_TOE + 1]               # static toe (spec 4.5), rad
     cd2, sd2 = math.cos(cp[i, C_TOE + 2]), math.sin(cp[i, C_TOE + 2])
     cd3, sd3 = math.cos(cp[i, C_TOE + 3]), math.sin(cp[i, C_TOE + 3])
@@ -616,39 +757,30 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         gby = gy * cy - gx * sy
         m = mass_dry + fuel
 
-        # --- loads (spec 5.2 step 4): TORCS's planar model: the wheels carry the whole weight m g
-        # on any slope or bank (no cos), no extra load from following a banked curve; quasi-static
-        # transfer from the previous step, downforce with the ground-effect factor
         ax_kin = ax_s - G * gbx
         ay_kin = ay_s - G * gby
-        normal = m * G
+        # --- aero (spec 4.7): body downforce with the ground-effect factor of the last ride
+        # heights; wings at their angle + pitch + the body's climb angle (TORCS's wing.cpp)
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
-        # ground-effect factor from the ride heights, lowered by the loads of the previous
-        # sub-step (spring x bellcrank^2 wheel rate), every sub-step as TORCS does it (so one
-        # call of n sub-steps and n calls of one agree bit for bit)
-        hm = 0.0
+        down_f = down_r = wfx = wfz = wmy = 0.0
         if vx > 0.0:
-            ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
-                    + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
-                    + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
-                    + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
-            hm = 1.5 * ride
+            hm = 1.5 * (st[i, S_RIDE] + st[i, S_RIDE + 1] + st[i, S_RIDE + 2] + st[i, S_RIDE + 3])
             hm = hm * hm
             hm = 2.0 * math.exp(-3.0 * hm * hm)
-        body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)
-        down_f = clift_f * body_down
-        down_r = clift_r * body_down
-        if vx > 0.0:
-            down_f += wdown_f * vx2
-            down_r += wdown_r * vx2
-        shift_x = m * ax_s * h / wb
-        fz_f = max(normal * b / wb - shift_x + down_f, 0.0)
-        fz_r = max(normal * a / wb + shift_x + down_r, 0.0)
-        fz0 = min(max(fz_f * cp[i, C_WFR] + m * ay_s * tf_share, 0.0), fz_f)
-        fz2 = min(max(fz_r * cp[i, C_WRR] + m * ay_s * tr_share, 0.0), fz_r)
-        fz1 = fz_f - fz0
-        fz3 = fz_r - fz2
+            body_down = vx2 * hm * vx / v                    # cos_a = max(0, vx/|v|)
+            down_f = clift_f * body_down
+            down_r = clift_r * body_down
+            climb = math.atan2(st[i, S_VZ], vx) + st[i, S_PITCH]
+            for w in range(2):
+                sa = math.sin(cp[i, C_WGANG + w] + climb) * vx2
+                fxw = cp[i, C_WGKX + w] * wear * sa          # < 0: drag
+                fzw = cp[i, C_WGKZ + w] * sa                 # < 0: downforce
+                wfx += fxw
+                wfz += fzw
+                wmy -= fzw * cp[i, C_WGX + w] + fxw * cp[i, C_WGZ + w]
+        # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
+        fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, gbx, gby, dt)
 
         # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
         k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
@@ -771,9 +903,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         fx2, fx3 = at2 * cd2 - an2 * sd2, at3 * cd3 - an3 * sd3
         fy_f = (at0 * sd0 + an0 * cd0) + (at1 * sd1 + an1 * cd1)
         fy_r = (at2 * sd2 + an2 * cd2) + (at3 * sd3 + an3 * cd3)
-        drag = -math.copysign(scx2 * vx2, vx)
-        if vx > 0.0:
-            drag += wing_drag * vx2
+        drag = -math.copysign(scx2 * vx2, vx) + wfx
         fx_ng = fx0 + fx1 + fx2 + fx3 + drag
         fy_ng = fy_f + fy_r
         fx = fx_ng - m * G * gbx      # gravity along the road: m g x height difference / distance
@@ -790,6 +920,14 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
         ax_s = (fx_ng - rv * vx) / m
         ay_s = (fy_ng - rv * vy) / m
+        # heave, roll, pitch (TORCS's car.cpp moments): loads at the wheels, lateral forces
+        # through the roll centres, longitudinal ones at the CG height + ride height, aero
+        mx = (y0 * fz0 + y1 * fz1 + y2 * fz2 + y3 * fz3) + rc_f * fy_f + rc_r * fy_r
+        my = (wmy + down_f * a - down_r * b
+              - (x0w * fz0 + x1w * fz1 + x2w * fz2 + x3w * fz3)
+              - (fx0 * (h + st[i, S_RIDE]) + fx1 * (h + st[i, S_RIDE + 1])
+                 + fx2 * (h + st[i, S_RIDE + 2]) + fx3 * (h + st[i, S_RIDE + 3])))
+        _body_vertical(st, i, cp, m, fz0 + fz1 + fz2 + fz3 - down_f - down_r + wfz, mx, my, packed, dt)
         v2_max = max(v2_max, vxg * vxg + vyg * vyg)
         r_max = max(r_max, abs(r))
         x += vxg * dt
@@ -812,5 +950,4 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_SPINRAW], st[i, S_SPINRAW + 1], st[i, S_SPINRAW + 2], st[i, S_SPINRAW + 3] = pw0, pw1, pw2, pw3
     st[i, S_FTRAW], st[i, S_FTRAW + 1], st[i, S_FTRAW + 2], st[i, S_FTRAW + 3] = pt0, pt1, pt2, pt3
     st[i, S_FNRAW], st[i, S_FNRAW + 1], st[i, S_FNRAW + 2], st[i, S_FNRAW + 3] = pn0, pn1, pn2, pn3
-    st[i, S_Z] = st[i, S_ROADZ] + h + ride_at_cg(st, i, cp)
     return v2_max, r_max

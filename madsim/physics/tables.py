@@ -127,6 +127,28 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_RIDEMAX:L.C_RIDEMAX + 4] = np.maximum(c.susp_course / np.maximum(c.susp_bellcrank, 1e-6), c.susp_packers)
     row[L.C_KB:L.C_KB + 4] = c.brake_kb
     row[L.C_TOE:L.C_TOE + 4] = c.toe
+    # suspension, anti-roll bars, wings and body inertias of the vertical dynamics (docs/physics.md)
+    bell = np.maximum(c.susp_bellcrank, 1e-6)
+    row[L.C_SPRING:L.C_SPRING + 4] = np.maximum(c.susp_spring, 1.0 / bell ** 2)
+    row[L.C_BELL:L.C_BELL + 4] = bell
+    row[L.C_COURSE:L.C_COURSE + 4] = c.susp_course
+    row[L.C_PACK:L.C_PACK + 4] = c.susp_packers
+    row[L.C_DBUMP1:L.C_DBUMP1 + 4] = c.susp_slow_bump
+    row[L.C_DBUMP2:L.C_DBUMP2 + 4] = c.susp_fast_bump
+    row[L.C_VBUMP:L.C_VBUMP + 4] = c.susp_bump_threshold
+    row[L.C_DREB1:L.C_DREB1 + 4] = c.susp_slow_rebound
+    row[L.C_DREB2:L.C_DREB2 + 4] = c.susp_fast_rebound
+    row[L.C_VREB:L.C_VREB + 4] = c.susp_rebound_threshold
+    row[L.C_WMASS:L.C_WMASS + 4] = np.maximum(c.wheel_mass, 1e-3)
+    row[L.C_WX:L.C_WX + 4] = c.wheel_pos[:, 0]
+    row[L.C_ARB:L.C_ARB + 2] = c.anti_roll_spring
+    row[L.C_RC:L.C_RC + 2] = c.roll_center_height
+    row[L.C_WGKX:L.C_WGKX + 2] = c.wing_kx
+    row[L.C_WGKZ:L.C_WGKZ + 2] = c.wing_kz
+    row[L.C_WGANG:L.C_WGANG + 2] = c.wing_angle
+    row[L.C_WGX:L.C_WGX + 2] = c.wing_x
+    row[L.C_WGZ:L.C_WGZ + 2] = c.wing_zpos
+    row[L.C_IXX], row[L.C_IYY] = c.ixx, c.iyy
     # overall ratios and drive inertias per gear slot (slot = gear + 1; slot 1 = neutral)
     share_i = 0.25 if c.drive_type == "4WD" else 0.5
     for gear in range(-1, c.top_gear + 1):
