@@ -233,20 +233,55 @@ def _wheel_susp(st, i, cp, k, ride, dt):
 
 
 @numba.njit(inline="always", **_JIT)
-def _wheel_loads(st, i, cp, gbx, gby, dt):
+def _road_z(pt, tsc, p, q, n):
+    """Road height, m, at distance q along piece p (may run one piece over either end) and
+    lateral offset n (track spec 5.4: linear right edge + banking, as `track_update`)."""
+    if q < 0.0:
+        p = p - 1 if p > 0 else pt.shape[0] - 1
+        q += pt[p, P_LEN]
+    elif q > pt[p, P_LEN]:
+        q -= pt[p, P_LEN]
+        p = p + 1 if p < pt.shape[0] - 1 else 0
+    u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
+    b0, b1 = pt[p, P_B0], pt[p, P_B1]
+    tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
+    w = tsc[T_WIDTH]
+    lo = -1e30 if tsc[T_TANGENT_R] > 0.0 else 0.0
+    hi = 1e30 if tsc[T_TANGENT_L] > 0.0 else w
+    yc = min(max(n + 0.5 * w, lo), hi)
+    zr0 = pt[p, P_ZR0]
+    return zr0 + u * (pt[p, P_ZR1] - zr0) + yc * tb
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
+    """Road height under wheel k of car i (its static x, y from the CG along the track frame)."""
+    p = int(st[i, S_PIECE])
+    q = st[i, S_S] - pt[p, P_S0]
+    if q < -0.5 * tsc[T_LENGTH]:
+        q += tsc[T_LENGTH]
+    elif q > 0.5 * tsc[T_LENGTH]:
+        q -= tsc[T_LENGTH]
+    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, st[i, S_N] + xk * spsi + yk * cpsi)
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_loads(st, i, cp, pt, tsc, dt):
     """Wheel loads of car i (N, wheel order) from its suspensions and anti-roll bars at the body's
     present heave, roll and pitch (docs/physics.md); stores each wheel's ride height and
-    suspension state. The road under each wheel is the plane through the road height at the CG
-    with its gradient (gbx, gby: body frame). Returns (fz0, fz1, fz2, fz3, packer mask: bit k
-    set when wheel k sits on its packers)."""
-    zb = st[i, S_Z] - cp[i, C_H] - st[i, S_ROADZ]
+    suspension state. Returns (fz0, fz1, fz2, fz3, packer mask: bit k set when wheel k sits on
+    its packers)."""
+    zb = st[i, S_Z] - cp[i, C_H]
     sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
+    dpsi = st[i, S_YAW] - st[i, S_THEAD]
+    cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
     f0 = f1 = f2 = f3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
     for k in range(4):
-        xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-        ride = zb - xk * sp + yk * sr - (gbx * xk + gby * yk)
+        ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
+                - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
         st[i, S_RIDE + k] = ride
         f, state = _wheel_susp(st, i, cp, k, ride, dt)
         if state == 1:
@@ -292,21 +327,20 @@ def _body_vertical(st, i, cp, m, fz_sum, mx, my, mask, dt):
 
 
 @numba.njit(**_JIT)
-def settle(st, cp, rows):
+def settle(st, cp, pt, tsc, rows):
     """Put the cars `rows` at rest on their suspensions: each wheel at its static ride height
     under its present load (st's fz), the body's height, pitch and roll fitted to the four, the
     vertical velocity that follows the road (docs/physics.md). Call after `refresh`."""
     for j in range(rows.shape[0]):
         i = rows[j]
-        cy, sy = math.cos(st[i, S_YAW]), math.sin(st[i, S_YAW])
-        gx, gy = st[i, S_GX], st[i, S_GY]
-        gbx, gby = gx * cy + gy * sy, gy * cy - gx * sy
+        dpsi = st[i, S_YAW] - st[i, S_THEAD]
+        cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
         h0 = h1 = h2 = h3 = 0.0
         for k in range(4):
             bell = cp[i, C_BELL + k]
             r = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / (cp[i, C_SPRING + k] * bell * bell)
             r = min(max(r, cp[i, C_PACK + k]), cp[i, C_COURSE + k] / bell)
-            hk = r + gbx * cp[i, C_WX + k] + gby * cp[i, C_WY + k]     # above the road at the CG
+            hk = r + _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi)      # body reference, global z
             if k == 0:
                 h0 = hk
             elif k == 1:
@@ -317,20 +351,20 @@ def settle(st, cp, rows):
                 h3 = hk
         a, b = cp[i, C_A], cp[i, C_B]
         hf, hr = 0.5 * (h0 + h1), 0.5 * (h2 + h3)
-        sp = (hr - hf) / (a + b)
-        sr = 0.5 * ((h1 - h0) / (cp[i, C_WY + 1] - cp[i, C_WY]) + (h3 - h2) / (cp[i, C_WY + 3] - cp[i, C_WY + 2]))
+        sp = min(max((hr - hf) / (a + b), -0.8), 0.8)
+        sr = min(max(0.5 * ((h1 - h0) / (cp[i, C_WY + 1] - cp[i, C_WY])
+                            + (h3 - h2) / (cp[i, C_WY + 3] - cp[i, C_WY + 2])), -0.8), 0.8)
         zb = (b * hf + a * hr) / (a + b)
-        st[i, S_PITCH] = math.asin(min(max(sp, -0.8), 0.8))
-        st[i, S_ROLLA] = math.asin(min(max(sr, -0.8), 0.8))
-        st[i, S_Z] = st[i, S_ROADZ] + cp[i, C_H] + zb
-        st[i, S_VZ] = gx * st[i, S_VXG] + gy * st[i, S_VYG]
+        st[i, S_PITCH] = math.asin(sp)
+        st[i, S_ROLLA] = math.asin(sr)
+        st[i, S_Z] = zb + cp[i, C_H]
+        st[i, S_VZ] = st[i, S_GX] * st[i, S_VXG] + st[i, S_GY] * st[i, S_VYG]
         st[i, S_ROLLR] = st[i, S_PITCHR] = 0.0
         for k in range(4):
-            xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-            ride = zb - xk * sp + yk * sr - (gbx * xk + gby * yk)
-            bell = cp[i, C_BELL + k]
+            ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
+                    - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
             st[i, S_RIDE + k] = ride
-            st[i, S_SUSP + k] = min(max(ride, cp[i, C_PACK + k]) * bell, cp[i, C_COURSE + k])
+            st[i, S_SUSP + k] = min(max(ride, cp[i, C_PACK + k]) * cp[i, C_BELL + k], cp[i, C_COURSE + k])
             st[i, S_WVZ + k] = 0.0
 
 
@@ -780,7 +814,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
                 wfz += fzw
                 wmy -= fzw * cp[i, C_WGX + w] + fxw * cp[i, C_WGZ + w]
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
-        fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, gbx, gby, dt)
+        fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, pt, tsc, dt)
 
         # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
         k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])

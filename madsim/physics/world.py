@@ -213,7 +213,7 @@ class World:
                                     / cp[rows, L.C_MASS])
         st[rows, L.S_PIECE] = tr.piece_at(s)
         kernel.refresh(st, cp, self._pt, self._surf, self._tsc, False)
-        kernel.settle(st, cp, np.asarray(rows, dtype=np.int64))
+        kernel.settle(st, cp, self._pt, self._tsc, np.asarray(rows, dtype=np.int64))
 
     # --- the tick -------------------------------------------------------------------------------
 
