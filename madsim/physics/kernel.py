@@ -267,14 +267,14 @@ def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
 
 
 @numba.njit(inline="always", **_JIT)
-def _wheel_loads(st, i, cp, pt, tsc, dt):
-    """Wheel loads of car i (N, wheel order) from its suspensions and anti-roll bars at the body's
-    present heave, roll and pitch (docs/physics.md); stores each wheel's ride height and
-    suspension state. Returns (fz0, fz1, fz2, fz3, packer mask: bit k set when wheel k sits on
+def _wheel_loads(st, i, cp, pt, tsc, yaw, dt):
+    """Wheel loads of car i (N, wheel order) with heading `yaw` (rad) from its suspensions and
+    anti-roll bars at the body's present heave, roll and pitch (docs/physics.md); stores each
+    wheel's ride height and suspension state. Returns (fz0, fz1, fz2, fz3, packer mask: bit k set when wheel k sits on
     its packers)."""
     zb = st[i, S_Z] - cp[i, C_H]
     sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
-    dpsi = st[i, S_YAW] - st[i, S_THEAD]
+    dpsi = yaw - st[i, S_THEAD]
     cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
     f0 = f1 = f2 = f3 = 0.0
     e0 = e1 = e2 = e3 = 0
@@ -814,7 +814,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
                 wfz += fzw
                 wmy -= fzw * cp[i, C_WGX + w] + fxw * cp[i, C_WGZ + w]
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
-        fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, pt, tsc, dt)
+        fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, pt, tsc, yaw, dt)
 
         # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
         k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
