@@ -714,6 +714,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     dragk = st[i, S_DRAGK]
     scx2 = cp[i, C_SCX2] * wear * dragk * dragk
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
+    sw0, cw0 = math.sin(cp[i, C_WGANG]), math.cos(cp[i, C_WGANG])             # wings (spec 4.7)
+    sw1, cw1 = math.sin(cp[i, C_WGANG + 1]), math.cos(cp[i, C_WGANG + 1])
+    kx0, kx1 = cp[i, C_WGKX] * wear, cp[i, C_WGKX + 1] * wear
+    kz0, kz1 = cp[i, C_WGKZ], cp[i, C_WGKZ + 1]
+    xw0, xw1, zw0, zw1 = cp[i, C_WGX], cp[i, C_WGX + 1], cp[i, C_WGZ], cp[i, C_WGZ + 1]
     y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]
     rc_f, rc_r = cp[i, C_RC], cp[i, C_RC + 1]                 # roll-centre heights
     x0w, x1w, x2w, x3w = cp[i, C_WX], cp[i, C_WX + 1], cp[i, C_WX + 2], cp[i, C_WX + 3]
@@ -806,13 +811,14 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             down_f = clift_f * body_down
             down_r = clift_r * body_down
             climb = math.atan2(st[i, S_VZ], vx) + st[i, S_PITCH]
-            for w in range(2):
-                sa = math.sin(cp[i, C_WGANG + w] + climb) * vx2
-                fxw = cp[i, C_WGKX + w] * wear * sa          # < 0: drag
-                fzw = cp[i, C_WGKZ + w] * sa                 # < 0: downforce
-                wfx += fxw
-                wfz += fzw
-                wmy -= fzw * cp[i, C_WGX + w] + fxw * cp[i, C_WGZ + w]
+            c_cl, s_cl = math.cos(climb) * vx2, math.sin(climb) * vx2
+            sa0 = sw0 * c_cl + cw0 * s_cl                    # sin(wing angle + climb) vx^2
+            sa1 = sw1 * c_cl + cw1 * s_cl
+            fxw0, fxw1 = kx0 * sa0, kx1 * sa1                # < 0: drag
+            fzw0, fzw1 = kz0 * sa0, kz1 * sa1                # < 0: downforce
+            wfx = fxw0 + fxw1
+            wfz = fzw0 + fzw1
+            wmy = -(fzw0 * xw0 + fxw0 * zw0 + fzw1 * xw1 + fxw1 * zw1)
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
         fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, pt, tsc, yaw, dt)
 

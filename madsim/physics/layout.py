@@ -103,8 +103,8 @@ CAR_COLUMNS = _enum(
     "top_gear shift_time drive_front_share driven_f driven_r i_free_f i_free_r "
     "viscous_max_share viscosity reaction_factor drag_coef "
     "steer_lock steer_speed brake_front brake_pmax "
-    "scx2 clift_f clift_r wing_drag wing_down_f wing_down_r "
-    "half_length half_width reach lat_share_f lat_share_r"
+    "scx2 clift_f clift_r "
+    "half_length half_width reach"
 )
 C = {name: i for i, name in enumerate(CAR_COLUMNS)}
 _n = len(CAR_COLUMNS)
@@ -117,12 +117,9 @@ C_LFMIN = _n + 16
 C_LFMAX = _n + 20
 C_LFK = _n + 24
 C_W0 = _n + 28        # static load (dry mass), N
-C_KSPR = _n + 32      # wheel rate spring x bellcrank^2, N/m
-C_RIDE0 = _n + 36     # static ride height, m
-C_KB = _n + 40        # brake torque per Pa, N m/Pa
-C_RIDEMIN = _n + 44   # lowest ride height: the packers, m
-C_RIDEMAX = _n + 48   # highest ride height: suspension course / bellcrank, m
-C_RATIO = _n + 52                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
+C_RIDE0 = _n + 32     # static ride height, m
+C_KB = _n + 36        # brake torque per Pa, N m/Pa
+C_RATIO = _n + 40                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
 C_IDRIVE_F = C_RATIO + MAX_GEAR_SLOTS   # driven front-axle inertia per slot, kg m^2
 C_IDRIVE_R = C_IDRIVE_F + MAX_GEAR_SLOTS
 # per-axle differential blocks of 2 (front, rear; spec 4.10)
@@ -167,8 +164,8 @@ DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
  C_TOP, C_SHIFT, C_FSHARE, C_DRIVEN_F, C_DRIVEN_R, C_IFREE_F, C_IFREE_R,
  C_VISC_MAX, C_VISC, C_REACT, C_CD,
  C_LOCK, C_STEERSPD, C_BRAKE_FRONT, C_PMAX,
- C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
- C_HALF_LEN, C_HALF_WID, C_REACH, C_LAT_F, C_LAT_R) = range(_n)
+ C_SCX2, C_CLIFT_F, C_CLIFT_R,
+ C_HALF_LEN, C_HALF_WID, C_REACH) = range(_n)
 
 # --- per-piece track table (P, N_PIECE) float64, built by `tables.piece_table` ----------------
 # It starts with the track's own piece geometry (`tracks.kernels.GEO_COLUMNS`, Track.geo), so

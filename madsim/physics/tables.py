@@ -1,9 +1,7 @@
 """Flatten `CarSpec`s and a `Track` into the constant arrays the kernels read (layout.py).
 
-Approximations made here (spec/torcs-car-format.md 5.4): one tyre shape per axle (the right
-wheel's B, C, E; TORCS cars use the same values left and right), one tyre radius per axle, wheel
-rate = spring x bellcrank^2 for the ride-height drop under load, wing angle of attack = the wing
-angle (no pitch), wing downforce split to the axles by the lever rule.
+Approximation made here (spec/torcs-car-format.md 5.4): one tyre shape per axle (the right
+wheel's B, C, E; TORCS cars use the same values left and right).
 """
 
 from __future__ import annotations
@@ -36,24 +34,6 @@ def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.nd
         curve_w[i, k:] = car.engine_speeds_rad_s[-1]
         curve_t[i, k:] = car.engine_torques_nm[-1]
     return cp, curve_w, curve_t
-
-
-def lateral_transfer_shares(c: CarSpec) -> tuple[float, float]:
-    """(front, rear) right-wheel load gained per newton of m x lateral acceleration (m).
-
-    TORCS's roll (spec 4.8, table of 4.9's axle attributes): each tyre's lateral force acts on
-    the body through its axle's roll-centre height (not the CG height), and the springs and
-    anti-roll bars take the roll moment in proportion to each axle's roll stiffness
-    `t^2 (k_wheel / 2 + k_arb x bellcrank)`, t the axle's track. Quasi-static: the lateral forces
-    split between the axles as the static weight does."""
-    tracks = np.array([c.track_front, c.track_rear])
-    k_wheel = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
-    bell = np.array([c.susp_bellcrank[:2].mean(), c.susp_bellcrank[2:].mean()])
-    k_roll = tracks ** 2 * (np.array([k_wheel[:2].mean(), k_wheel[2:].mean()]) / 2.0
-                            + np.maximum(c.anti_roll_spring, 0.0) * bell)
-    arm = (c.b * c.roll_center_height[0] + c.a * c.roll_center_height[1]) / c.wheelbase
-    shares = arm * k_roll / float(np.sum(k_roll)) / np.maximum(tracks, 1e-6)
-    return float(shares[0]), float(shares[1])
 
 
 def _car_row(c: CarSpec, skid: float) -> np.ndarray:
@@ -105,14 +85,8 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     # TORCS's drag coefficient for the slipstream (spec 4.6): SCx2 + the rear wing's drag
     row[L.C_CD] = c.scx2 - float(c.wing_kx[1] * np.sin(c.wing_angle[1]))
     row[L.C_CLIFT_F], row[L.C_CLIFT_R] = c.clift
-    sin_aoa = np.sin(c.wing_angle)
-    row[L.C_WINGDRAG] = float(np.sum(c.wing_kx * sin_aoa))            # < 0: drag
-    down = -c.wing_kz * sin_aoa                                        # > 0: downforce per vx^2
-    row[L.C_WINGDOWN_F] = float(np.sum(down * (c.wing_x + c.b) / wl))
-    row[L.C_WINGDOWN_R] = float(np.sum(down * (c.a - c.wing_x) / wl))
     row[L.C_HALF_LEN], row[L.C_HALF_WID] = c.body_length / 2.0, c.body_width / 2.0
     row[L.C_REACH] = float(np.max(np.hypot(c.wheel_pos[:, 0], c.wheel_pos[:, 1])))   # CG to farthest wheel
-    row[L.C_LAT_F], row[L.C_LAT_R] = lateral_transfer_shares(c)
     row[L.C_WY:L.C_WY + 4] = c.wheel_pos[:, 1]
     row[L.C_RAD:L.C_RAD + 4] = c.wheel_radius
     row[L.C_KMU:L.C_KMU + 4] = c.tyre_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))
@@ -121,10 +95,7 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_LFMAX:L.C_LFMAX + 4] = c.load_factor_max
     row[L.C_LFK:L.C_LFK + 4] = c.load_factor_k
     row[L.C_W0:L.C_W0 + 4] = c.static_wheel_load
-    row[L.C_KSPR:L.C_KSPR + 4] = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
     row[L.C_RIDE0:L.C_RIDE0 + 4] = c.ride_height
-    row[L.C_RIDEMIN:L.C_RIDEMIN + 4] = c.susp_packers
-    row[L.C_RIDEMAX:L.C_RIDEMAX + 4] = np.maximum(c.susp_course / np.maximum(c.susp_bellcrank, 1e-6), c.susp_packers)
     row[L.C_KB:L.C_KB + 4] = c.brake_kb
     row[L.C_TOE:L.C_TOE + 4] = c.toe
     # suspension, anti-roll bars, wings and body inertias of the vertical dynamics (docs/physics.md)
