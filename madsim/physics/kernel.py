@@ -194,22 +194,23 @@ def _damper(v, c1, c2, v1):
 
 
 @numba.njit(inline="always", **_JIT)
-def _wheel_susp(st, i, cp, k, ride, dt):
-    """One sub-step of wheel k's suspension (docs/physics.md, after TORCS's wheel.cpp and
-    susp.cpp): the wheel follows its relative velocity, limited by the road (`ride`, m: body
-    reference above the road under the wheel), then the travel is clamped to the packers and to
-    the suspension course. Stores the travel (x bellcrank, m) and the wheel's relative velocity;
-    returns (suspension force, N; state: 0 free, 1 on the packers, 2 fully extended)."""
+def _wheel_travel(st, i, cp, k, ride, dt):
+    """Wheel k's suspension travel for one sub-step (docs/physics.md, after TORCS 1.3.7's
+    SimWheelUpdateRide and SimSuspCheckIn): the wheel moves by its relative velocity, stopped
+    by the road (`ride`, m: body reference above the road under the wheel) and by the packers,
+    then the travel (x bellcrank) is clamped to the packers and the suspension course. Stores
+    the travel and the wheel's relative velocity; returns (travel speed, m/s, + in bump; state:
+    0 free, 1 on the packers (the road is above them), 2 fully extended)."""
     bell = cp[i, C_BELL + k]
     pack = cp[i, C_PACK + k]
     prex = st[i, S_SUSP + k]
-    wv = st[i, S_WVZ + k]
-    x = prex / bell - wv * dt
+    x = prex / bell - st[i, S_WVZ + k] * dt
     if ride < x:
         x = ride
-        wv = 0.0
+        st[i, S_WVZ + k] = 0.0
     elif x < pack:
-        wv = 0.0
+        x = pack
+        st[i, S_WVZ + k] = 0.0
     state = 0
     if x < pack:
         x = pack
@@ -218,18 +219,31 @@ def _wheel_susp(st, i, cp, k, ride, dt):
     if x > cp[i, C_COURSE + k]:
         x = cp[i, C_COURSE + k]
         state = 2
-    v = (prex - x) / dt                       # + compressing (bump)
-    spring = max(cp[i, C_W0 + k] / bell - cp[i, C_SPRING + k] * (x - bell * cp[i, C_RIDE0 + k]), 0.0)
+    st[i, S_SUSP + k] = x
+    return (prex - x) / dt, state
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_force(st, i, cp, k, v, state, bar, dt):
+    """Vertical force of wheel k on the body, N (TORCS 1.3.7's SimSuspUpdate and
+    SimWheelUpdateForce): spring F0 - k (x - x0) (never pulling) + two-slope damper at travel
+    speed v, their sum never pulling, times the bellcrank, + the anti-roll bar's `bar`, N. A fully
+    extended wheel moving down passes its own inertia instead. Updates the wheel's relative
+    velocity; the tyre's load is this force's positive part."""
+    bell = cp[i, C_BELL + k]
+    spring = max(cp[i, C_W0 + k] / bell - cp[i, C_SPRING + k] * (st[i, S_SUSP + k] - bell * cp[i, C_RIDE0 + k]), 0.0)
     if v < 0.0:
         damp = _damper(v, cp[i, C_DREB1 + k], cp[i, C_DREB2 + k], cp[i, C_VREB + k])
     else:
         damp = _damper(v, cp[i, C_DBUMP1 + k], cp[i, C_DBUMP2 + k], cp[i, C_VBUMP + k])
-    force = (spring + damp) * bell
-    if state == 2 and wv < 0.0:
-        wv = 0.0
-    st[i, S_SUSP + k] = x
-    st[i, S_WVZ + k] = wv - dt * force / cp[i, C_WMASS + k]
-    return force, state
+    wv = st[i, S_WVZ + k]
+    if state == 2 and wv <= 0.0:
+        f = wv / dt * cp[i, C_WMASS + k]
+        st[i, S_WVZ + k] = 0.0
+    else:
+        f = bar + max(spring + damp, 0.0) * bell
+        st[i, S_WVZ + k] = wv - dt * f / cp[i, C_WMASS + k]
+    return f
 
 
 @numba.njit(inline="always", **_JIT)
@@ -268,40 +282,38 @@ def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
 
 @numba.njit(inline="always", **_JIT)
 def _wheel_loads(st, i, cp, pt, tsc, yaw, dt):
-    """Wheel loads of car i (N, wheel order) with heading `yaw` (rad) from its suspensions and
-    anti-roll bars at the body's present heave, roll and pitch (docs/physics.md); stores each
-    wheel's ride height and suspension state. Returns (fz0, fz1, fz2, fz3, packer mask: bit k set when wheel k sits on
-    its packers)."""
+    """Vertical wheel forces of car i on the body (N, wheel order) with heading `yaw` (rad), from
+    its suspensions and anti-roll bars at the body's present heave, roll and pitch
+    (docs/physics.md); stores each wheel's ride height and suspension state. Returns (f0, f1,
+    f2, f3, packer mask: bit k set when wheel k sits on its packers); a tyre's load is max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
     sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
     dpsi = yaw - st[i, S_THEAD]
     cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
-    f0 = f1 = f2 = f3 = 0.0
+    v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
     for k in range(4):
         ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
                 - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
         st[i, S_RIDE + k] = ride
-        f, state = _wheel_susp(st, i, cp, k, ride, dt)
+        v, state = _wheel_travel(st, i, cp, k, ride, dt)
         if state == 1:
             mask |= 1 << k
         if k == 0:
-            f0, e0 = f, state
+            v0, e0 = v, state
         elif k == 1:
-            f1, e1 = f, state
+            v1, e1 = v, state
         elif k == 2:
-            f2, e2 = f, state
+            v2, e2 = v, state
         else:
-            f3, e3 = f, state
+            v3, e3 = v, state
     # anti-roll bars: k_arb (x_left - x_right), + on the right wheel, - on the left
     arb_f = cp[i, C_ARB] * (st[i, S_SUSP + 1] - st[i, S_SUSP])
     arb_r = cp[i, C_ARB + 1] * (st[i, S_SUSP + 3] - st[i, S_SUSP + 2])
-    fz0 = max(arb_f + f0, 0.0) if e0 != 2 else 0.0
-    fz1 = max(-arb_f + f1, 0.0) if e1 != 2 else 0.0
-    fz2 = max(arb_r + f2, 0.0) if e2 != 2 else 0.0
-    fz3 = max(-arb_r + f3, 0.0) if e3 != 2 else 0.0
-    return fz0, fz1, fz2, fz3, mask
+    return (_wheel_force(st, i, cp, 0, v0, e0, arb_f, dt), _wheel_force(st, i, cp, 1, v1, e1, -arb_f, dt),
+            _wheel_force(st, i, cp, 2, v2, e2, arb_r, dt), _wheel_force(st, i, cp, 3, v3, e3, -arb_r, dt),
+            mask)
 
 
 @numba.njit(inline="always", **_JIT)
@@ -820,7 +832,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             wfz = fzw0 + fzw1
             wmy = -(fzw0 * xw0 + fxw0 * zw0 + fzw1 * xw1 + fxw1 * zw1)
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
-        fz0, fz1, fz2, fz3, packed = _wheel_loads(st, i, cp, pt, tsc, yaw, dt)
+        fb0, fb1, fb2, fb3, packed = _wheel_loads(st, i, cp, pt, tsc, yaw, dt)
+        fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
 
         # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
         k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
@@ -962,12 +975,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         ay_s = (fy_ng - rv * vy) / m
         # heave, roll, pitch (TORCS's car.cpp moments): loads at the wheels, lateral forces
         # through the roll centres, longitudinal ones at the CG height + ride height, aero
-        mx = (y0 * fz0 + y1 * fz1 + y2 * fz2 + y3 * fz3) + rc_f * fy_f + rc_r * fy_r
+        mx = (y0 * fb0 + y1 * fb1 + y2 * fb2 + y3 * fb3) + rc_f * fy_f + rc_r * fy_r
         my = (wmy + down_f * a - down_r * b
-              - (x0w * fz0 + x1w * fz1 + x2w * fz2 + x3w * fz3)
+              - (x0w * fb0 + x1w * fb1 + x2w * fb2 + x3w * fb3)
               - (fx0 * (h + st[i, S_RIDE]) + fx1 * (h + st[i, S_RIDE + 1])
                  + fx2 * (h + st[i, S_RIDE + 2]) + fx3 * (h + st[i, S_RIDE + 3])))
-        _body_vertical(st, i, cp, m, fz0 + fz1 + fz2 + fz3 - down_f - down_r + wfz, mx, my, packed, dt)
+        _body_vertical(st, i, cp, m, fb0 + fb1 + fb2 + fb3 - down_f - down_r + wfz, mx, my, packed, dt)
         v2_max = max(v2_max, vxg * vxg + vyg * vyg)
         r_max = max(r_max, abs(r))
         x += vxg * dt
