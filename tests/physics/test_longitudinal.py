@@ -132,7 +132,10 @@ def test_braking_distance_tyre_limited(straight, ph):
     force is Fz mu lf(Fz) friction camber F(1) (1 + skid) per wheel with the steady load transfer
     of TORCS's pitch: the tyre forces act at the CG height + the ride height (docs/physics.md,
     suspension; the static ride heights here: the pitch changes them by a few mm)."""
-    car = ph.sedan(brake_max_pressure=1.0e8)
+    # a long suspension course keeps the rear wheels on the road under the pitch (the sedan's
+    # 0.15 m reaches full extension: TORCS 1.3.7 then alternates a wheel's load between its
+    # spring force and 0, docs/physics.md, and the closed form no longer holds)
+    car = ph.sedan(brake_max_pressure=1.0e8, susp_course=np.full(4, 0.3))
     friction = 1.1
     v0 = 100.0 / 3.6
     w = ph.world_at(straight(rolling=ROLL, friction=friction), car, speed=v0, gear=0)
