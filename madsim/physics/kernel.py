@@ -5,9 +5,11 @@ Everything here is plain loops over cars on the arrays described in `madsim.phys
 runs as ordinary Python for debugging. There is no second (numpy) implementation.
 
 One sub-step of dt = 0.002 s, in TORCS's order (spec 4.11): steering -> gearbox -> engine torque
--> wheel loads -> tyre forces -> wheel spin -> engine speed -> body forces -> velocities ->
-positions -> track position, surfaces and laps. A car's state is read into locals once per call
-and written back at the end, so the sub-step loop runs in registers. Each wheel has its own
+-> aero -> suspensions and wheel loads -> tyre forces -> wheel spin -> engine speed -> body
+forces -> velocities -> positions -> heave, roll and pitch -> track position, surfaces and laps.
+A car's planar state is read into locals once per call and written back at the end, so the
+sub-step loop runs in registers; the vertical state (suspensions, heave, roll, pitch: TORCS's
+simuv2, docs/physics.md) is read and written in `st` by its own functions. Each wheel has its own
 slip (from its own contact-point velocity and, at the front, its own Ackermann angle) and its
 own spin; the two spins of an axle step together through the axle's differential
 (`_axle_spin`, spec 4.10).
