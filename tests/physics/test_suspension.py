@@ -160,3 +160,27 @@ def test_world_batch_equals_the_world_bit_for_bit_over_hills(make_track, ph):
         assert np.array_equal(batch.state[batch.rows(0)], worlds[0].state)
         assert np.array_equal(worlds[1].state, worlds[0].state)
     assert worlds[0].state[0, L.S_S] > 205.0      # over the crest at 200 m
+
+
+def test_a_wheel_at_full_extension_alternates_as_in_torcs_1_3_7(straight, ph):
+    """Hard braking lifts the sedan's rear (2.5 cm of travel left at rest) to its suspension
+    course. TORCS 1.3.7 then alternates every 2 ms: the wheel's inertia pulls the body (tyre
+    load 0), next step the spring force at full extension, F0 - k (course - x0) times the
+    bellcrank, reaches the tyre again (its in-the-air flag is cleared before it is read)."""
+    car = ph.sedan(brake_max_pressure=1.0e8)
+    w = ph.world_at(straight(), car, speed=100.0 / 3.6)
+    u = np.array([[0.0, 0.0, 1.0, 0.0, 0.0]])
+    for _ in range(10):
+        w.step(u)
+    bell, k = car.susp_bellcrank[2], car.susp_spring[2]
+    at_course = (car.static_wheel_load[2] / bell - k * (car.susp_course[2] - bell * car.ride_height[2])) * bell
+    rear = []
+    for _ in range(6):
+        w.step(u, 1)
+        rear.append(w.state[0, L.S_FZ + 2])
+        assert w.state[0, L.S_SUSP + 2] == pytest.approx(car.susp_course[2], abs=1e-9)
+    rear = np.array(rear)
+    assert at_course > 500.0
+    zero, full = rear[rear < 1.0], rear[rear >= 1.0]
+    assert len(zero) == len(full) == 3 and np.all(np.diff(rear > 1.0) != 0)
+    np.testing.assert_allclose(full, at_course, rtol=1e-6)
