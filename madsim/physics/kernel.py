@@ -5,9 +5,11 @@ Everything here is plain loops over cars on the arrays described in `madsim.phys
 runs as ordinary Python for debugging. There is no second (numpy) implementation.
 
 One sub-step of dt = 0.002 s, in TORCS's order (spec 4.11): steering -> gearbox -> engine torque
--> wheel loads -> tyre forces -> wheel spin -> engine speed -> body forces -> velocities ->
-positions -> track position, surfaces and laps. A car's state is read into locals once per call
-and written back at the end, so the sub-step loop runs in registers. Each wheel has its own
+-> aero -> suspensions and wheel loads -> tyre forces -> wheel spin -> engine speed -> body
+forces -> velocities -> positions -> heave, roll and pitch -> track position, surfaces and laps.
+A car's planar state is read into locals once per call and written back at the end, so the
+sub-step loop runs in registers; the vertical state (suspensions, heave, roll, pitch: TORCS's
+simuv2, docs/physics.md) is read and written in `st` by its own functions. Each wheel has its own
 slip (from its own contact-point velocity and, at the front, its own Ackermann angle) and its
 own spin; the two spins of an axle step together through the axle's differential
 (`_axle_spin`, spec 4.10).
@@ -37,24 +39,23 @@ import numpy as np
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
-    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_LAT_F, C_LAT_R, C_KMU, C_KSPR, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT,
-    C_LOCK, C_MASS, C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_REACH, C_REACT, C_RIDE0,
-    C_RIDEMAX, C_RIDEMIN, C_SCX2, C_SHIFT, C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_TR, C_VISC,
-    C_VISC_MAX, C_W0, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
-    DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, C_WFR, C_WINGDOWN_F, C_WINGDOWN_R, C_WINGDRAG, C_WRR, C_WY, FLAG_LAST,
-    FLAG_START, P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV,
-    P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SSURF_L,
-    P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R,
+    C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT, C_LOCK, C_MASS,
+    C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
+    C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
+    C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
+    DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
+    P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF,
+    P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R,
     P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
-    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_ROADZ,
-    S_ROLL, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG, S_WE, S_SPIN,
-    S_X, S_Y, S_YAW, S_Z, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH,
-    U_GEAR, U_STEER,
+    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_RIDE,
+    S_ROADZ, S_ROLL, S_PITCH, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG,
+    S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
+    T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
+from madsim.physics.suspension import G, body_vertical, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import wrap_angle as _wrap
 
-G = 9.80665          # m/s^2, as TORCS
 V_REG = 2.0          # m/s, slip denominator floor (see module docstring)
 SLIP_MAX = 1.5       # TORCS's slip clamp
 YAW_RATE_MAX = 9.0   # rad/s, TORCS's cap
@@ -178,20 +179,6 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
-def ride_at_cg(st, i, cp):
-    """Ride height under the CG, m: each wheel's static ride height lowered by its load above
-    the static one over its wheel rate (spring x bellcrank^2), between the packers and the
-    suspension course (TORCS's suspension at rest under that load, spec 4.8), interpolated
-    from the axles to the CG."""
-    r = 0.0
-    for k in range(4):
-        rk = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / cp[i, C_KSPR + k]
-        rk = min(max(rk, cp[i, C_RIDEMIN + k]), cp[i, C_RIDEMAX + k])
-        r += rk * (cp[i, C_B] if k < 2 else cp[i, C_A])
-    return 0.5 * r / cp[i, C_L]
-
-
-@numba.njit(inline="always", **_JIT)
 def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
     piece, and store s, n, piece, track heading, road z, the road gradient at the CG, the surface
@@ -228,7 +215,6 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
     st[i, S_ROADZ] = z
-    st[i, S_Z] = z + cp[i, C_H]     # + the ride height: added once per call (refresh, advance_car)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
@@ -277,7 +263,6 @@ def refresh(st, cp, pt, surf, tsc, count_laps):
         st[i, S_VX] = st[i, S_VXG] * cy + st[i, S_VYG] * sy
         st[i, S_VY] = st[i, S_VYG] * cy - st[i, S_VXG] * sy
         track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y], cy, sy, count_laps)
-        st[i, S_Z] += ride_at_cg(st, i, cp)
 
 
 SLIP_MIN_SPEED = 10.0
@@ -537,11 +522,16 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
     wear = 1.0 + st[i, S_DAMAGE] / 10000.0
     dragk = st[i, S_DRAGK]
-    scx2, wing_drag = cp[i, C_SCX2] * wear * dragk * dragk, cp[i, C_WINGDRAG] * wear
+    scx2 = cp[i, C_SCX2] * wear * dragk * dragk
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
-    wdown_f, wdown_r = cp[i, C_WINGDOWN_F], cp[i, C_WINGDOWN_R]
+    sw0, cw0 = math.sin(cp[i, C_WGANG]), math.cos(cp[i, C_WGANG])             # wings (spec 4.7)
+    sw1, cw1 = math.sin(cp[i, C_WGANG + 1]), math.cos(cp[i, C_WGANG + 1])
+    kx0, kx1 = cp[i, C_WGKX] * wear, cp[i, C_WGKX + 1] * wear
+    kz0, kz1 = cp[i, C_WGKZ], cp[i, C_WGKZ + 1]
+    xw0, xw1, zw0, zw1 = cp[i, C_WGX], cp[i, C_WGX + 1], cp[i, C_WGZ], cp[i, C_WGZ + 1]
     y0, y1, y2, y3 = cp[i, C_WY], cp[i, C_WY + 1], cp[i, C_WY + 2], cp[i, C_WY + 3]
-    tf_share, tr_share = cp[i, C_LAT_F], cp[i, C_LAT_R]     # roll centres, roll stiffness
+    rc_f, rc_r = cp[i, C_RC], cp[i, C_RC + 1]                 # roll-centre heights
+    x0w, x1w, x2w, x3w = cp[i, C_WX], cp[i, C_WX + 1], cp[i, C_WX + 2], cp[i, C_WX + 3]
     toe0, toe1 = cp[i, C_TOE], cp[i, C_TOE + 1]               # static toe (spec 4.5), rad
     cd2, sd2 = math.cos(cp[i, C_TOE + 2]), math.sin(cp[i, C_TOE + 2])
     cd3, sd3 = math.cos(cp[i, C_TOE + 3]), math.sin(cp[i, C_TOE + 3])
@@ -616,39 +606,32 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         gby = gy * cy - gx * sy
         m = mass_dry + fuel
 
-        # --- loads (spec 5.2 step 4): TORCS's planar model: the wheels carry the whole weight m g
-        # on any slope or bank (no cos), no extra load from following a banked curve; quasi-static
-        # transfer from the previous step, downforce with the ground-effect factor
         ax_kin = ax_s - G * gbx
         ay_kin = ay_s - G * gby
-        normal = m * G
+        # --- aero (spec 4.7): body downforce with the ground-effect factor of the last ride
+        # heights; wings at their angle + pitch + the body's climb angle (TORCS's wing.cpp)
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
-        # ground-effect factor from the ride heights, lowered by the loads of the previous
-        # sub-step (spring x bellcrank^2 wheel rate), every sub-step as TORCS does it (so one
-        # call of n sub-steps and n calls of one agree bit for bit)
-        hm = 0.0
+        down_f = down_r = wfx = wfz = wmy = 0.0
         if vx > 0.0:
-            ride = (max(cp[i, C_RIDE0] - (fz0 - cp[i, C_W0]) / cp[i, C_KSPR], 0.0)
-                    + max(cp[i, C_RIDE0 + 1] - (fz1 - cp[i, C_W0 + 1]) / cp[i, C_KSPR + 1], 0.0)
-                    + max(cp[i, C_RIDE0 + 2] - (fz2 - cp[i, C_W0 + 2]) / cp[i, C_KSPR + 2], 0.0)
-                    + max(cp[i, C_RIDE0 + 3] - (fz3 - cp[i, C_W0 + 3]) / cp[i, C_KSPR + 3], 0.0))
-            hm = 1.5 * ride
+            hm = 1.5 * (st[i, S_RIDE] + st[i, S_RIDE + 1] + st[i, S_RIDE + 2] + st[i, S_RIDE + 3])
             hm = hm * hm
             hm = 2.0 * math.exp(-3.0 * hm * hm)
-        body_down = vx2 * hm * vx / v if vx > 0.0 else 0.0      # cos_a = max(0, vx/|v|)
-        down_f = clift_f * body_down
-        down_r = clift_r * body_down
-        if vx > 0.0:
-            down_f += wdown_f * vx2
-            down_r += wdown_r * vx2
-        shift_x = m * ax_s * h / wb
-        fz_f = max(normal * b / wb - shift_x + down_f, 0.0)
-        fz_r = max(normal * a / wb + shift_x + down_r, 0.0)
-        fz0 = min(max(fz_f * cp[i, C_WFR] + m * ay_s * tf_share, 0.0), fz_f)
-        fz2 = min(max(fz_r * cp[i, C_WRR] + m * ay_s * tr_share, 0.0), fz_r)
-        fz1 = fz_f - fz0
-        fz3 = fz_r - fz2
+            body_down = vx2 * hm * vx / v                    # cos_a = max(0, vx/|v|)
+            down_f = clift_f * body_down
+            down_r = clift_r * body_down
+            climb = math.atan2(st[i, S_VZ], vx) + st[i, S_PITCH]
+            c_cl, s_cl = math.cos(climb) * vx2, math.sin(climb) * vx2
+            sa0 = sw0 * c_cl + cw0 * s_cl                    # sin(wing angle + climb) vx^2
+            sa1 = sw1 * c_cl + cw1 * s_cl
+            fxw0, fxw1 = kx0 * sa0, kx1 * sa1                # < 0: drag
+            fzw0, fzw1 = kz0 * sa0, kz1 * sa1                # < 0: downforce
+            wfx = fxw0 + fxw1
+            wfz = fzw0 + fzw1
+            wmy = -(fzw0 * xw0 + fxw0 * zw0 + fzw1 * xw1 + fxw1 * zw1)
+        # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
+        fb0, fb1, fb2, fb3, packed = wheel_loads(st, i, cp, pt, tsc, yaw, dt)
+        fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
 
         # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
         k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
@@ -771,9 +754,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         fx2, fx3 = at2 * cd2 - an2 * sd2, at3 * cd3 - an3 * sd3
         fy_f = (at0 * sd0 + an0 * cd0) + (at1 * sd1 + an1 * cd1)
         fy_r = (at2 * sd2 + an2 * cd2) + (at3 * sd3 + an3 * cd3)
-        drag = -math.copysign(scx2 * vx2, vx)
-        if vx > 0.0:
-            drag += wing_drag * vx2
+        drag = -math.copysign(scx2 * vx2, vx) + wfx
         fx_ng = fx0 + fx1 + fx2 + fx3 + drag
         fy_ng = fy_f + fy_r
         fx = fx_ng - m * G * gbx      # gravity along the road: m g x height difference / distance
@@ -790,6 +771,14 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
         ax_s = (fx_ng - rv * vx) / m
         ay_s = (fy_ng - rv * vy) / m
+        # heave, roll, pitch (TORCS's car.cpp moments): loads at the wheels, lateral forces
+        # through the roll centres, longitudinal ones at the CG height + ride height, aero
+        mx = (y0 * fb0 + y1 * fb1 + y2 * fb2 + y3 * fb3) + rc_f * fy_f + rc_r * fy_r
+        my = (wmy + down_f * a - down_r * b
+              - (x0w * fb0 + x1w * fb1 + x2w * fb2 + x3w * fb3)
+              - (fx0 * (h + st[i, S_RIDE]) + fx1 * (h + st[i, S_RIDE + 1])
+                 + fx2 * (h + st[i, S_RIDE + 2]) + fx3 * (h + st[i, S_RIDE + 3])))
+        body_vertical(st, i, cp, m, fb0 + fb1 + fb2 + fb3 - down_f - down_r + wfz, mx, my, packed, dt)
         v2_max = max(v2_max, vxg * vxg + vyg * vyg)
         r_max = max(r_max, abs(r))
         x += vxg * dt
@@ -812,5 +801,4 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     st[i, S_SPINRAW], st[i, S_SPINRAW + 1], st[i, S_SPINRAW + 2], st[i, S_SPINRAW + 3] = pw0, pw1, pw2, pw3
     st[i, S_FTRAW], st[i, S_FTRAW + 1], st[i, S_FTRAW + 2], st[i, S_FTRAW + 3] = pt0, pt1, pt2, pt3
     st[i, S_FNRAW], st[i, S_FNRAW + 1], st[i, S_FNRAW + 2], st[i, S_FNRAW + 3] = pn0, pn1, pn2, pn3
-    st[i, S_Z] = st[i, S_ROADZ] + h + ride_at_cg(st, i, cp)
     return v2_max, r_max

@@ -25,11 +25,13 @@ STATE_COLUMNS = _enum(
     "fz_fr fz_fl fz_rr fz_rl fric_fr fric_fl fric_rr fric_rl roll_fr roll_fl roll_rr roll_rl "
     "grad_x grad_y track_heading road_z drag_factor "
     "spin_raw_fr spin_raw_fl spin_raw_rr spin_raw_rl ft_raw_fr ft_raw_fl ft_raw_rr ft_raw_rl "
-    "fn_raw_fr fn_raw_fl fn_raw_rr fn_raw_rl"
+    "fn_raw_fr fn_raw_fl fn_raw_rr fn_raw_rl "
+    "vz roll pitch roll_rate pitch_rate susp_fr susp_fl susp_rr susp_rl "
+    "wheel_vz_fr wheel_vz_fl wheel_vz_rr wheel_vz_rl ride_fr ride_fl ride_rr ride_rl"
 )
 STATE_DOC = {
     "x": "CG x, global frame, m", "y": "CG y, m",
-    "z": "CG height: road height under the CG + GC height + ride height (suspension at rest under the current loads), m",
+    "z": "CG height (global), integrated with the body's heave (docs/physics.md, suspension), m",
     "yaw": "heading of the body x axis, rad in [-pi, pi)",
     "vx_g": "global velocity x, m/s", "vy_g": "global velocity y, m/s",
     "yaw_rate": "rad/s, |r| <= 9", "vx": "body-frame longitudinal velocity, m/s",
@@ -62,6 +64,15 @@ STATE_DOC = {
     "ft_raw_fl": "N", "ft_raw_rr": "N", "ft_raw_rl": "N",
     "fn_raw_fr": "last raw lateral tyre force front right (wheel frame, before the average), N",
     "fn_raw_fl": "N", "fn_raw_rr": "N", "fn_raw_rl": "N",
+    "vz": "CG vertical velocity (global), m/s", "roll": "body roll angle, rad (+: left side up)",
+    "pitch": "body pitch angle, rad (+: nose down)", "roll_rate": "rad/s", "pitch_rate": "rad/s",
+    "susp_fr": "suspension travel front right: ride height x bellcrank, between the packers and the "
+               "suspension course (TORCS's susp.x), m",
+    "susp_fl": "m", "susp_rr": "m", "susp_rl": "m",
+    "wheel_vz_fr": "wheel's vertical velocity relative to the body (TORCS's rel_vel, + compressing), m/s",
+    "wheel_vz_fl": "m/s", "wheel_vz_rr": "m/s", "wheel_vz_rl": "m/s",
+    "ride_fr": "ride height front right: body reference above the road under the wheel (unclamped), m",
+    "ride_fl": "m", "ride_rr": "m", "ride_rl": "m",
 }
 S = {name: i for i, name in enumerate(STATE_COLUMNS)}
 (S_X, S_Y, S_Z, S_YAW, S_VXG, S_VYG, S_R, S_VX, S_VY, S_AX, S_AY,
@@ -77,6 +88,10 @@ S_DRAGK = S["drag_factor"]
 S_SPINRAW = S["spin_raw_fr"]   # 4 last raw spins (TORCS's prespinVel), wheel order
 S_FTRAW = S["ft_raw_fr"]       # 4 last raw longitudinal tyre forces (TORCS's preFt)
 S_FNRAW = S["fn_raw_fr"]       # 4 last raw lateral tyre forces (TORCS's preFn)
+S_VZ, S_ROLLA, S_PITCH, S_ROLLR, S_PITCHR = (S[n] for n in ("vz", "roll", "pitch", "roll_rate", "pitch_rate"))
+S_SUSP = S["susp_fr"]          # 4 suspension travels (bellcrank-scaled), wheel order
+S_WVZ = S["wheel_vz_fr"]       # 4 wheel vertical velocities relative to the body
+S_RIDE = S["ride_fr"]          # 4 ride heights (unclamped), wheel order
 N_STATE = len(STATE_COLUMNS)
 
 # --- per-car constants (N, N_CAR) float64, built from CarSpec by `carparams.car_table` ---------
@@ -88,8 +103,8 @@ CAR_COLUMNS = _enum(
     "top_gear shift_time drive_front_share driven_f driven_r i_free_f i_free_r "
     "viscous_max_share viscosity reaction_factor drag_coef "
     "steer_lock steer_speed brake_front brake_pmax "
-    "scx2 clift_f clift_r wing_drag wing_down_f wing_down_r "
-    "half_length half_width reach lat_share_f lat_share_r"
+    "scx2 clift_f clift_r "
+    "half_length half_width reach"
 )
 C = {name: i for i, name in enumerate(CAR_COLUMNS)}
 _n = len(CAR_COLUMNS)
@@ -102,12 +117,9 @@ C_LFMIN = _n + 16
 C_LFMAX = _n + 20
 C_LFK = _n + 24
 C_W0 = _n + 28        # static load (dry mass), N
-C_KSPR = _n + 32      # wheel rate spring x bellcrank^2, N/m
-C_RIDE0 = _n + 36     # static ride height, m
-C_KB = _n + 40        # brake torque per Pa, N m/Pa
-C_RIDEMIN = _n + 44   # lowest ride height: the packers, m
-C_RIDEMAX = _n + 48   # highest ride height: suspension course / bellcrank, m
-C_RATIO = _n + 52                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
+C_RIDE0 = _n + 32     # static ride height, m
+C_KB = _n + 36        # brake torque per Pa, N m/Pa
+C_RATIO = _n + 40                       # MAX_GEAR_SLOTS overall ratios, slot = gear + 1
 C_IDRIVE_F = C_RATIO + MAX_GEAR_SLOTS   # driven front-axle inertia per slot, kg m^2
 C_IDRIVE_R = C_IDRIVE_F + MAX_GEAR_SLOTS
 # per-axle differential blocks of 2 (front, rear; spec 4.10)
@@ -119,7 +131,31 @@ C_DMIN = C_DLOCKB + 2     # viscous coupler: min torque bias of the right wheel
 C_DSPAN = C_DMIN + 2      # viscous coupler: max - min torque bias
 C_DVISC = C_DSPAN + 2     # viscous coupler: viscosity factor, 1/(rad/s)
 C_TOE = C_DVISC + 2       # static toe per wheel (FR, FL, RR, RL), rad, left + (spec 4.5)
-N_CAR = C_TOE + 4
+# suspension per wheel (blocks of 4; TORCS's susp.cpp / wheel.cpp, docs/physics.md)
+C_SPRING = C_TOE + 4      # spring rate k, N/m (at the spring: x bellcrank^2 at the wheel)
+C_BELL = C_SPRING + 4     # bellcrank ratio
+C_COURSE = C_BELL + 4     # suspension course: largest travel (bellcrank-scaled), m
+C_PACK = C_COURSE + 4     # packers: smallest ride height, m
+C_DBUMP1 = C_PACK + 4     # slow bump damping, N s/m
+C_DBUMP2 = C_DBUMP1 + 4   # fast bump damping, N s/m
+C_VBUMP = C_DBUMP2 + 4    # bump slow/fast threshold, m/s
+C_DREB1 = C_VBUMP + 4     # slow rebound, N s/m
+C_DREB2 = C_DREB1 + 4     # fast rebound, N s/m
+C_VREB = C_DREB2 + 4      # rebound threshold, m/s
+C_WMASS = C_VREB + 4      # wheel (unsprung) mass, kg
+C_WX = C_WMASS + 4        # wheel x relative to the CG, m
+# per axle (front, rear)
+C_ARB = C_WX + 4          # anti-roll bar rate, N/m
+C_RC = C_ARB + 2          # roll-centre height, m
+# per wing (front, rear)
+C_WGKX = C_RC + 2         # wing drag constant Kx = -1.23 area (x damage factor in the kernel), kg/m
+C_WGKZ = C_WGKX + 2       # wing lift constant Kz = 4 Kx, kg/m
+C_WGANG = C_WGKZ + 2      # wing angle, rad
+C_WGX = C_WGANG + 2       # wing x relative to the CG, m
+C_WGZ = C_WGX + 2         # wing z (the car file's), m
+C_IXX = C_WGZ + 2         # roll inertia (dry mass), kg m^2
+C_IYY = C_IXX + 1         # pitch inertia (dry mass), kg m^2
+N_CAR = C_IYY + 1
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,
@@ -128,8 +164,8 @@ DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
  C_TOP, C_SHIFT, C_FSHARE, C_DRIVEN_F, C_DRIVEN_R, C_IFREE_F, C_IFREE_R,
  C_VISC_MAX, C_VISC, C_REACT, C_CD,
  C_LOCK, C_STEERSPD, C_BRAKE_FRONT, C_PMAX,
- C_SCX2, C_CLIFT_F, C_CLIFT_R, C_WINGDRAG, C_WINGDOWN_F, C_WINGDOWN_R,
- C_HALF_LEN, C_HALF_WID, C_REACH, C_LAT_F, C_LAT_R) = range(_n)
+ C_SCX2, C_CLIFT_F, C_CLIFT_R,
+ C_HALF_LEN, C_HALF_WID, C_REACH) = range(_n)
 
 # --- per-piece track table (P, N_PIECE) float64, built by `tables.piece_table` ----------------
 # It starts with the track's own piece geometry (`tracks.kernels.GEO_COLUMNS`, Track.geo), so

@@ -1,9 +1,7 @@
 """Flatten `CarSpec`s and a `Track` into the constant arrays the kernels read (layout.py).
 
-Approximations made here (spec/torcs-car-format.md 5.4): one tyre shape per axle (the right
-wheel's B, C, E; TORCS cars use the same values left and right), one tyre radius per axle, wheel
-rate = spring x bellcrank^2 for the ride-height drop under load, wing angle of attack = the wing
-angle (no pitch), wing downforce split to the axles by the lever rule.
+Approximation made here (spec/torcs-car-format.md 5.4): one tyre shape per axle (the right
+wheel's B, C, E; TORCS cars use the same values left and right).
 """
 
 from __future__ import annotations
@@ -36,24 +34,6 @@ def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.nd
         curve_w[i, k:] = car.engine_speeds_rad_s[-1]
         curve_t[i, k:] = car.engine_torques_nm[-1]
     return cp, curve_w, curve_t
-
-
-def lateral_transfer_shares(c: CarSpec) -> tuple[float, float]:
-    """(front, rear) right-wheel load gained per newton of m x lateral acceleration (m).
-
-    TORCS's roll (spec 4.8, table of 4.9's axle attributes): each tyre's lateral force acts on
-    the body through its axle's roll-centre height (not the CG height), and the springs and
-    anti-roll bars take the roll moment in proportion to each axle's roll stiffness
-    `t^2 (k_wheel / 2 + k_arb x bellcrank)`, t the axle's track. Quasi-static: the lateral forces
-    split between the axles as the static weight does."""
-    tracks = np.array([c.track_front, c.track_rear])
-    k_wheel = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
-    bell = np.array([c.susp_bellcrank[:2].mean(), c.susp_bellcrank[2:].mean()])
-    k_roll = tracks ** 2 * (np.array([k_wheel[:2].mean(), k_wheel[2:].mean()]) / 2.0
-                            + np.maximum(c.anti_roll_spring, 0.0) * bell)
-    arm = (c.b * c.roll_center_height[0] + c.a * c.roll_center_height[1]) / c.wheelbase
-    shares = arm * k_roll / float(np.sum(k_roll)) / np.maximum(tracks, 1e-6)
-    return float(shares[0]), float(shares[1])
 
 
 def _car_row(c: CarSpec, skid: float) -> np.ndarray:
@@ -105,14 +85,8 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     # TORCS's drag coefficient for the slipstream (spec 4.6): SCx2 + the rear wing's drag
     row[L.C_CD] = c.scx2 - float(c.wing_kx[1] * np.sin(c.wing_angle[1]))
     row[L.C_CLIFT_F], row[L.C_CLIFT_R] = c.clift
-    sin_aoa = np.sin(c.wing_angle)
-    row[L.C_WINGDRAG] = float(np.sum(c.wing_kx * sin_aoa))            # < 0: drag
-    down = -c.wing_kz * sin_aoa                                        # > 0: downforce per vx^2
-    row[L.C_WINGDOWN_F] = float(np.sum(down * (c.wing_x + c.b) / wl))
-    row[L.C_WINGDOWN_R] = float(np.sum(down * (c.a - c.wing_x) / wl))
     row[L.C_HALF_LEN], row[L.C_HALF_WID] = c.body_length / 2.0, c.body_width / 2.0
     row[L.C_REACH] = float(np.max(np.hypot(c.wheel_pos[:, 0], c.wheel_pos[:, 1])))   # CG to farthest wheel
-    row[L.C_LAT_F], row[L.C_LAT_R] = lateral_transfer_shares(c)
     row[L.C_WY:L.C_WY + 4] = c.wheel_pos[:, 1]
     row[L.C_RAD:L.C_RAD + 4] = c.wheel_radius
     row[L.C_KMU:L.C_KMU + 4] = c.tyre_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))
@@ -121,12 +95,31 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_LFMAX:L.C_LFMAX + 4] = c.load_factor_max
     row[L.C_LFK:L.C_LFK + 4] = c.load_factor_k
     row[L.C_W0:L.C_W0 + 4] = c.static_wheel_load
-    row[L.C_KSPR:L.C_KSPR + 4] = np.maximum(c.susp_spring * c.susp_bellcrank ** 2, 1.0)
     row[L.C_RIDE0:L.C_RIDE0 + 4] = c.ride_height
-    row[L.C_RIDEMIN:L.C_RIDEMIN + 4] = c.susp_packers
-    row[L.C_RIDEMAX:L.C_RIDEMAX + 4] = np.maximum(c.susp_course / np.maximum(c.susp_bellcrank, 1e-6), c.susp_packers)
     row[L.C_KB:L.C_KB + 4] = c.brake_kb
     row[L.C_TOE:L.C_TOE + 4] = c.toe
+    # suspension, anti-roll bars, wings and body inertias of the vertical dynamics (docs/physics.md)
+    bell = np.maximum(c.susp_bellcrank, 1e-6)
+    row[L.C_SPRING:L.C_SPRING + 4] = np.maximum(c.susp_spring, 1.0 / bell ** 2)
+    row[L.C_BELL:L.C_BELL + 4] = bell
+    row[L.C_COURSE:L.C_COURSE + 4] = c.susp_course
+    row[L.C_PACK:L.C_PACK + 4] = c.susp_packers
+    row[L.C_DBUMP1:L.C_DBUMP1 + 4] = c.susp_slow_bump
+    row[L.C_DBUMP2:L.C_DBUMP2 + 4] = c.susp_fast_bump
+    row[L.C_VBUMP:L.C_VBUMP + 4] = c.susp_bump_threshold
+    row[L.C_DREB1:L.C_DREB1 + 4] = c.susp_slow_rebound
+    row[L.C_DREB2:L.C_DREB2 + 4] = c.susp_fast_rebound
+    row[L.C_VREB:L.C_VREB + 4] = c.susp_rebound_threshold
+    row[L.C_WMASS:L.C_WMASS + 4] = np.maximum(c.wheel_mass, 1e-3)
+    row[L.C_WX:L.C_WX + 4] = c.wheel_pos[:, 0]
+    row[L.C_ARB:L.C_ARB + 2] = c.anti_roll_spring
+    row[L.C_RC:L.C_RC + 2] = c.roll_center_height
+    row[L.C_WGKX:L.C_WGKX + 2] = c.wing_kx
+    row[L.C_WGKZ:L.C_WGKZ + 2] = c.wing_kz
+    row[L.C_WGANG:L.C_WGANG + 2] = c.wing_angle
+    row[L.C_WGX:L.C_WGX + 2] = c.wing_x
+    row[L.C_WGZ:L.C_WGZ + 2] = c.wing_zpos
+    row[L.C_IXX], row[L.C_IYY] = c.ixx, c.iyy
     # overall ratios and drive inertias per gear slot (slot = gear + 1; slot 1 = neutral)
     share_i = 0.25 if c.drive_type == "4WD" else 0.5
     for gear in range(-1, c.top_gear + 1):

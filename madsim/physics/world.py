@@ -16,7 +16,7 @@ import numpy as np
 
 from madsim.cars.spec import CarSpec
 from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
-from madsim.physics import kernel, world_tick
+from madsim.physics import kernel, suspension, world_tick
 from madsim.physics import layout as L
 from madsim.physics.tables import QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
@@ -213,6 +213,7 @@ class World:
                                     / cp[rows, L.C_MASS])
         st[rows, L.S_PIECE] = tr.piece_at(s)
         kernel.refresh(st, cp, self._pt, self._surf, self._tsc, False)
+        suspension.settle(st, cp, self._pt, self._tsc, np.asarray(rows, dtype=np.int64))
 
     # --- the tick -------------------------------------------------------------------------------
 

@@ -1,6 +1,6 @@
 """The car kernel's speed work changes no bit: state hashes after N ticks equal the ones recorded
-from the kernel with TORCS's spin step and averages above 3 m/s and static toe (issue 12; before
-that, main's commit bb41c09).
+from the kernel with TORCS's suspension and the body's heave, roll and pitch (issue 12's
+suspension round; before that, TORCS's spin step and averages above 3 m/s and static toe).
 
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
@@ -25,11 +25,11 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "884484a74ad230b7ae70e43a47cebc5bccf3678de179af0b971dee8cf8a24a77",
-    "six_contact": "5d03aacd62bf88de90783d58f7776fdf01fb8695e0f4a5c7d8de9a3a9ef200a6",
-    "four_wd": "37cf4c7903e5f4374c69bba006ed587ca5c28982ccc348ea520c375ad33eaede",
-    "vec_traffic": "fb8b243f2a73db13a8a998e51d830ec21edde5b1992646fe4e6c9002db900f51",
-    "env_ts": "2e3e668ad6fe3d14bb7fdf9b331bf683224c5c81f43ca965a99f6debd3925abc",
+    "one_car": "a1302a77d830359794f36c6607fb912d8881cf0529ebceaa4b6a2c4229a3c4ef",
+    "six_contact": "b4018f6deb01a36d9615373b75a7bcb24679d32b9cb8dabda84458a16a14aaa0",
+    "four_wd": "8752642ced31e4b1d4030525b1c856d0f3891226ca41799d6ca44784791f9b58",
+    "vec_traffic": "c04990e8de8152c9b0945b86e3fbaf752d512577d26fd859d87a68f93e8ab36f",
+    "env_ts": "4d39f2bb7f63ab0dfe9287910f68400134a69170a9dadb884c6cf2bf09fcde32",
 }
 
 

@@ -1,0 +1,224 @@
+"""TORCS's suspension and the body's heave, roll and pitch (docs/physics.md, "Suspension and
+vertical dynamics"; after TORCS 1.3.7's simuv2: susp.cpp, wheel.cpp, axle.cpp, car.cpp,
+collide.cpp), compiled per car on the arrays of `madsim.physics.layout` and called by the car
+kernel's sub-step (`kernel.advance_car`: `wheel_loads` before the tyres, `body_vertical` after the
+planar step) and at placement (`settle`). The vertical state lives in `st`'s columns S_Z, S_VZ,
+S_ROLLA, S_PITCH, their rates, S_SUSP, S_WVZ and S_RIDE (4 each, wheel order)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+
+from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
+    C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H, C_IXX, C_IYY,
+    C_PACK, C_RIDE0, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
+    P_B0, P_B1, P_INVLEN, P_LEN, P_S0, P_TB0, P_ZR0, P_ZR1,
+    S_FZ, S_GX, S_GY, S_N, S_PIECE, S_PITCH, S_PITCHR, S_RIDE, S_ROLLA, S_ROLLR, S_S, S_SUSP,
+    S_THEAD, S_VXG, S_VYG, S_VZ, S_WVZ, S_YAW, S_Z, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH,
+)
+
+G = 9.80665          # m/s^2, as TORCS
+ANGLE_MAX = 1.04     # rad, TORCS's limit of roll and pitch
+GROUND_REBOUND = 0.5
+"""Share of the body's downward speed removed per wheel on its packers (TORCS: the road
+surface's rebound, 0.5 for the roads; the surface table does not carry it, docs/physics.md)."""
+
+_JIT = {"cache": True, "error_model": "numpy"}
+
+
+@numba.njit(inline="always", **_JIT)
+def _damper(v, c1, c2, v1):
+    """TORCS's two-slope damper (docs/physics.md): force, N, at travel speed v (m/s, + bump),
+    |v| capped at 10 m/s; slope c1 (N s/m) below the threshold v1 (m/s), c2 above, continuous."""
+    av = min(abs(v), 10.0)
+    f = c1 * av if av < v1 else c2 * av + (c1 - c2) * v1
+    return f if v >= 0.0 else -f
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_travel(st, i, cp, k, ride, dt):
+    """Wheel k's suspension travel for one sub-step (docs/physics.md, after TORCS 1.3.7's
+    SimWheelUpdateRide and SimSuspCheckIn): the wheel moves by its relative velocity, stopped
+    by the road (`ride`, m: body reference above the road under the wheel) and by the packers,
+    then the travel (x bellcrank) is clamped to the packers and the suspension course. Stores
+    the travel and the wheel's relative velocity; returns (travel speed, m/s, + in bump; state:
+    0 free, 1 on the packers (the road is above them), 2 fully extended)."""
+    bell = cp[i, C_BELL + k]
+    pack = cp[i, C_PACK + k]
+    prex = st[i, S_SUSP + k]
+    x = prex / bell - st[i, S_WVZ + k] * dt
+    if ride < x:
+        x = ride
+        st[i, S_WVZ + k] = 0.0
+    elif x < pack:
+        x = pack
+        st[i, S_WVZ + k] = 0.0
+    state = 0
+    if x < pack:
+        x = pack
+        state = 1
+    x *= bell
+    if x > cp[i, C_COURSE + k]:
+        x = cp[i, C_COURSE + k]
+        state = 2
+    st[i, S_SUSP + k] = x
+    return (prex - x) / dt, state
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_force(st, i, cp, k, v, state, bar, dt):
+    """Vertical force of wheel k on the body, N (TORCS 1.3.7's SimSuspUpdate and
+    SimWheelUpdateForce): spring F0 - k (x - x0) (never pulling) + two-slope damper at travel
+    speed v, their sum never pulling, times the bellcrank, + the anti-roll bar's `bar`, N. A fully
+    extended wheel moving down passes its own inertia instead. Updates the wheel's relative
+    velocity; the tyre's load is this force's positive part."""
+    bell = cp[i, C_BELL + k]
+    spring = max(cp[i, C_W0 + k] / bell - cp[i, C_SPRING + k] * (st[i, S_SUSP + k] - bell * cp[i, C_RIDE0 + k]), 0.0)
+    if v < 0.0:
+        damp = _damper(v, cp[i, C_DREB1 + k], cp[i, C_DREB2 + k], cp[i, C_VREB + k])
+    else:
+        damp = _damper(v, cp[i, C_DBUMP1 + k], cp[i, C_DBUMP2 + k], cp[i, C_VBUMP + k])
+    wv = st[i, S_WVZ + k]
+    if state == 2 and wv <= 0.0:
+        f = wv / dt * cp[i, C_WMASS + k]
+        st[i, S_WVZ + k] = 0.0
+    else:
+        f = bar + max(spring + damp, 0.0) * bell
+        st[i, S_WVZ + k] = wv - dt * f / cp[i, C_WMASS + k]
+    return f
+
+
+@numba.njit(inline="always", **_JIT)
+def _road_z(pt, tsc, p, q, n):
+    """Road height, m, at distance q along piece p (may run one piece over either end) and
+    lateral offset n (track spec 5.4: linear right edge + banking, as `track_update`)."""
+    if q < 0.0:
+        p = p - 1 if p > 0 else pt.shape[0] - 1
+        q += pt[p, P_LEN]
+    elif q > pt[p, P_LEN]:
+        q -= pt[p, P_LEN]
+        p = p + 1 if p < pt.shape[0] - 1 else 0
+    u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
+    b0, b1 = pt[p, P_B0], pt[p, P_B1]
+    tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
+    w = tsc[T_WIDTH]
+    lo = -1e30 if tsc[T_TANGENT_R] > 0.0 else 0.0
+    hi = 1e30 if tsc[T_TANGENT_L] > 0.0 else w
+    yc = min(max(n + 0.5 * w, lo), hi)
+    zr0 = pt[p, P_ZR0]
+    return zr0 + u * (pt[p, P_ZR1] - zr0) + yc * tb
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
+    """Road height under wheel k of car i (its static x, y from the CG along the track frame)."""
+    p = int(st[i, S_PIECE])
+    q = st[i, S_S] - pt[p, P_S0]
+    if q < -0.5 * tsc[T_LENGTH]:
+        q += tsc[T_LENGTH]
+    elif q > 0.5 * tsc[T_LENGTH]:
+        q -= tsc[T_LENGTH]
+    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, st[i, S_N] + xk * spsi + yk * cpsi)
+
+
+@numba.njit(inline="always", **_JIT)
+def wheel_loads(st, i, cp, pt, tsc, yaw, dt):
+    """Vertical wheel forces of car i on the body (N, wheel order) with heading `yaw` (rad), from
+    its suspensions and anti-roll bars at the body's present heave, roll and pitch
+    (docs/physics.md); stores each wheel's ride height and suspension state. Returns (f0, f1,
+    f2, f3, packer mask: bit k set when wheel k sits on its packers); a tyre's load is max(f, 0)."""
+    zb = st[i, S_Z] - cp[i, C_H]
+    sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
+    dpsi = yaw - st[i, S_THEAD]
+    cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
+    v0 = v1 = v2 = v3 = 0.0
+    e0 = e1 = e2 = e3 = 0
+    mask = 0
+    for k in range(4):
+        ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
+                - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
+        st[i, S_RIDE + k] = ride
+        v, state = _wheel_travel(st, i, cp, k, ride, dt)
+        if state == 1:
+            mask |= 1 << k
+        if k == 0:
+            v0, e0 = v, state
+        elif k == 1:
+            v1, e1 = v, state
+        elif k == 2:
+            v2, e2 = v, state
+        else:
+            v3, e3 = v, state
+    # anti-roll bars: k_arb (x_left - x_right), + on the right wheel, - on the left
+    arb_f = cp[i, C_ARB] * (st[i, S_SUSP + 1] - st[i, S_SUSP])
+    arb_r = cp[i, C_ARB + 1] * (st[i, S_SUSP + 3] - st[i, S_SUSP + 2])
+    return (_wheel_force(st, i, cp, 0, v0, e0, arb_f, dt), _wheel_force(st, i, cp, 1, v1, e1, -arb_f, dt),
+            _wheel_force(st, i, cp, 2, v2, e2, arb_r, dt), _wheel_force(st, i, cp, 3, v3, e3, -arb_r, dt),
+            mask)
+
+
+@numba.njit(inline="always", **_JIT)
+def body_vertical(st, i, cp, m, fz_sum, mx, my, mask, dt):
+    """Heave, roll and pitch of car i by one sub-step (TORCS's semi-implicit Euler, roll and
+    pitch limited to +-1.04 rad), then the packers' ground contact: each wheel on its packers
+    lifts the body to them and halves its downward speed (docs/physics.md).
+    fz_sum: vertical force on the body without gravity, N; mx, my: roll and pitch moments, N m."""
+    vz = st[i, S_VZ] + (fz_sum / m - G) * dt
+    wr = st[i, S_ROLLR] + mx / cp[i, C_IXX] * dt
+    wp = st[i, S_PITCHR] + my / cp[i, C_IYY] * dt
+    z = st[i, S_Z] + vz * dt
+    roll = min(max(st[i, S_ROLLA] + wr * dt, -ANGLE_MAX), ANGLE_MAX)
+    pitch = min(max(st[i, S_PITCH] + wp * dt, -ANGLE_MAX), ANGLE_MAX)
+    if mask:
+        for k in range(4):
+            if mask & (1 << k):
+                z += cp[i, C_PACK + k] - st[i, S_RIDE + k]
+                if vz < 0.0:
+                    vz -= GROUND_REBOUND * vz
+    st[i, S_VZ], st[i, S_ROLLR], st[i, S_PITCHR] = vz, wr, wp
+    st[i, S_Z], st[i, S_ROLLA], st[i, S_PITCH] = z, roll, pitch
+
+
+@numba.njit(**_JIT)
+def settle(st, cp, pt, tsc, rows):
+    """Put the cars `rows` at rest on their suspensions: each wheel at its static ride height
+    under its present load (st's fz), the body's height, pitch and roll fitted to the four, the
+    vertical velocity that follows the road (docs/physics.md). Call after `refresh`."""
+    for j in range(rows.shape[0]):
+        i = rows[j]
+        dpsi = st[i, S_YAW] - st[i, S_THEAD]
+        cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
+        h0 = h1 = h2 = h3 = 0.0
+        for k in range(4):
+            bell = cp[i, C_BELL + k]
+            r = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / (cp[i, C_SPRING + k] * bell * bell)
+            r = min(max(r, cp[i, C_PACK + k]), cp[i, C_COURSE + k] / bell)
+            hk = r + _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi)      # body reference, global z
+            if k == 0:
+                h0 = hk
+            elif k == 1:
+                h1 = hk
+            elif k == 2:
+                h2 = hk
+            else:
+                h3 = hk
+        a, b = cp[i, C_A], cp[i, C_B]
+        hf, hr = 0.5 * (h0 + h1), 0.5 * (h2 + h3)
+        sp = min(max((hr - hf) / (a + b), -0.8), 0.8)
+        sr = min(max(0.5 * ((h1 - h0) / (cp[i, C_WY + 1] - cp[i, C_WY])
+                            + (h3 - h2) / (cp[i, C_WY + 3] - cp[i, C_WY + 2])), -0.8), 0.8)
+        zb = (b * hf + a * hr) / (a + b)
+        st[i, S_PITCH] = math.asin(sp)
+        st[i, S_ROLLA] = math.asin(sr)
+        st[i, S_Z] = zb + cp[i, C_H]
+        st[i, S_VZ] = st[i, S_GX] * st[i, S_VXG] + st[i, S_GY] * st[i, S_VYG]
+        st[i, S_ROLLR] = st[i, S_PITCHR] = 0.0
+        for k in range(4):
+            ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
+                    - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
+            st[i, S_RIDE + k] = ride
+            st[i, S_SUSP + k] = min(max(ride, cp[i, C_PACK + k]) * cp[i, C_BELL + k], cp[i, C_COURSE + k])
+            st[i, S_WVZ + k] = 0.0
