@@ -1,4 +1,4 @@
-"""atan, sin and cos in plain arithmetic, and a four-lane stack buffer: what lets the compiler
+"""atan, sin, cos and exp in plain arithmetic, and a four-lane stack buffer: what lets the compiler
 evaluate the four tyres of a car side by side in SIMD lanes.
 
 A call into libm cannot be vectorised (numba has no vector math library here), so the tyre
@@ -9,8 +9,8 @@ IEEE double arithmetic (no fastmath), so a result does not depend on which lane 
 cars are computed at once, and with NUMBA_DISABLE_JIT=1 Python gives the same numbers.
 
 Accuracy (tests/physics/test_elementary.py, against mpmath at 40 digits): `atan` and `sin`,
-`cos` of the magic formula's angles within 2 ulp of the correctly rounded value over the whole
-input range tested (atan: all finite x; sin/cos: |x| <= 100).
+`cos` of the magic formula's angles, `exp` within 2 ulp of the correctly rounded value over the
+whole input range tested (atan: all x; sin/cos: |x| <= 100; exp: [-708, 709]).
 
 Derivations (each constant is reproducible from its description):
 - atan: x -> |x|; above tan(3 pi / 8) t = -1/|x| and atan = pi/2 + atan(t), above tan(pi / 8)
@@ -21,6 +21,9 @@ Derivations (each constant is reproducible from its description):
 - sin, cos: k = round(2 x / pi), r = x - k pi/2 with pi/2 split into two 33-bit parts and a
   remainder (each k pi/2 part exact for |k| < 2^20), then the Taylor series of sin r (to r^17)
   and cos r (to r^18) on |r| <= pi/4 (truncation < 3e-18), quadrant k mod 4.
+- exp: k = round(x / ln 2), r = x - k ln 2 with ln 2 split into a 42-bit part and the rest
+  (k ln2_hi exact for |k| < 2^11), the Taylor series of e^r to r^13 on |r| <= ln(2)/2
+  (truncation < 5e-18), times 2^k built from its bits.
 """
 
 from __future__ import annotations
@@ -52,6 +55,39 @@ _S3, _S5, _S7, _S9 = -0.16666666666666666, 0.008333333333333333, -0.000198412698
 _S11, _S13, _S15, _S17 = -2.505210838544172e-08, 1.6059043836821613e-10, -7.647163731819816e-13, 2.8114572543455206e-15
 _C4, _C6, _C8, _C10 = 0.041666666666666664, -0.001388888888888889, 2.48015873015873e-05, -2.755731922398589e-07
 _C12, _C14, _C16, _C18 = 2.08767569878681e-09, -1.1470745597729725e-11, 4.779477332387385e-14, -1.5619206968586225e-16
+
+# exp: ln 2 = _LN2_HI (42 significant bits) + _LN2_LO; Taylor coefficients 1 / n!
+_INV_LN2 = 1.4426950408889634
+_LN2_HI, _LN2_LO = 0.6931471805598903, 5.497923018708371e-14
+_E2, _E3, _E4, _E5 = 0.5, 0.16666666666666666, 0.041666666666666664, 0.008333333333333333
+_E6, _E7, _E8, _E9 = 0.001388888888888889, 0.0001984126984126984, 2.48015873015873e-05, 2.7557319223985893e-06
+_E10, _E11, _E12, _E13 = 2.755731922398589e-07, 2.505210838544172e-08, 2.08767569878681e-09, 1.6059043836821613e-10
+EXP_MIN, EXP_MAX = -708.0, 709.0
+"""`exp`'s argument range: outside it the argument is clamped (e^-708 ~ 3e-308 stands for 0)."""
+
+
+@intrinsic
+def _pow2(typingctx, k):
+    """2.0 ** k for an integral float64 k in [-1022, 1023], from its bits (vectorisable)."""
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        bits = builder.shl(builder.add(builder.fptosi(args[0], i64), i64(1023)), i64(52))
+        return builder.bitcast(bits, ir.DoubleType())
+    return types.float64(types.float64), codegen
+
+
+@numba.njit(inline="always", **_JIT)
+def exp(x):
+    """e^x for finite x, within 2 ulp on [EXP_MIN, EXP_MAX]; x clamped to that range."""
+    x = min(max(x, EXP_MIN), EXP_MAX)
+    k = math.floor(x * _INV_LN2 + 0.5)
+    r = (x - k * _LN2_HI) - k * _LN2_LO
+    r2 = r * r
+    r4 = r2 * r2
+    r8 = r4 * r4
+    q = (((_E2 + _E3 * r) + (_E4 + _E5 * r) * r2) + ((_E6 + _E7 * r) + (_E8 + _E9 * r) * r2) * r4
+         + (((_E10 + _E11 * r) + (_E12 + _E13 * r) * r2) * r8))
+    return (1.0 + (r + r2 * q)) * _pow2(k)
 
 
 @numba.njit(inline="always", **_JIT)

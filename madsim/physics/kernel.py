@@ -554,6 +554,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     l_vx, l_vy, l_cd, l_sd, l_spin = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
     l_b, l_c, l_e = el.lanes4(), el.lanes4(), el.lanes4()
     l_ft, l_fn, l_dft = el.lanes4(), el.lanes4(), el.lanes4()
+    l_fz, l_k, l_fric = el.lanes4(), el.lanes4(), el.lanes4()
+    l_mu, l_lf0, l_lfd, l_lfk, l_opl = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
+    for k in range(4):
+        l_mu[k], l_lfk[k], l_opl[k] = cp[i, C_KMU + k], cp[i, C_LFK + k], cp[i, C_OPLOAD + k]
+        l_lf0[k], l_lfd[k] = cp[i, C_LFMIN + k], cp[i, C_LFMAX + k] - cp[i, C_LFMIN + k]
     l_b[0], l_b[1], l_b[2], l_b[3] = bf, bf, br, br
     l_c[0], l_c[1], l_c[2], l_c[3] = cf, cf, cr, cr
     l_e[0], l_e[1], l_e[2], l_e[3] = ef, ef, er, er
@@ -664,29 +669,25 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         fz1 = fz_f - fz0
         fz3 = fz_r - fz2
 
-        # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
-        k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
-                                                    * math.exp(cp[i, C_LFK] * fz0 / cp[i, C_OPLOAD]))
-        k1 = fz1 * cp[i, C_KMU + 1] * st[i, S_FRIC + 1] * (
-            cp[i, C_LFMIN + 1] + (cp[i, C_LFMAX + 1] - cp[i, C_LFMIN + 1])
-            * math.exp(cp[i, C_LFK + 1] * fz1 / cp[i, C_OPLOAD + 1]))
-        k2 = fz2 * cp[i, C_KMU + 2] * st[i, S_FRIC + 2] * (
-            cp[i, C_LFMIN + 2] + (cp[i, C_LFMAX + 2] - cp[i, C_LFMIN + 2])
-            * math.exp(cp[i, C_LFK + 2] * fz2 / cp[i, C_OPLOAD + 2]))
-        k3 = fz3 * cp[i, C_KMU + 3] * st[i, S_FRIC + 3] * (
-            cp[i, C_LFMIN + 3] + (cp[i, C_LFMAX + 3] - cp[i, C_LFMIN + 3])
-            * math.exp(cp[i, C_LFK + 3] * fz3 / cp[i, C_OPLOAD + 3]))
+        # rolling resistance force, N
         roll = (fz0 * st[i, S_ROLL] + fz1 * st[i, S_ROLL + 1] + fz2 * st[i, S_ROLL + 2]
                 + fz3 * st[i, S_ROLL + 3])
 
         # --- tyres (spec 4.9): each wheel its own slip from its own contact-point velocity
         # (body velocity + yaw rate x wheel position), forces by its load scale
+        # K = Fz mu camber lf(Fz) friction (spec 4.9), all four in one loop over lanes
+        l_fz[0], l_fz[1], l_fz[2], l_fz[3] = fz0, fz1, fz2, fz3
+        l_fric[0], l_fric[1] = st[i, S_FRIC], st[i, S_FRIC + 1]
+        l_fric[2], l_fric[3] = st[i, S_FRIC + 2], st[i, S_FRIC + 3]
         l_vx[0], l_vx[1], l_vx[2], l_vx[3] = vx - y0 * r, vx - y1 * r, vx - y2 * r, vx - y3 * r
         l_vy[0], l_vy[1], l_vy[2], l_vy[3] = vy + a * r, vy + a * r, vy - b * r, vy - b * r
         l_spin[0], l_spin[1], l_spin[2], l_spin[3] = w0 * rad0, w1 * rad1, w2 * rad2, w3 * rad3
         for k in range(n_lanes):
+            fz = l_fz[k]
+            l_k[k] = fz * l_mu[k] * l_fric[k] * (l_lf0[k] + l_lfd[k] * el.exp(l_lfk[k] * fz / l_opl[k]))
             l_ft[k], l_fn[k], l_dft[k] = _tyre(l_vx[k], l_vy[k], l_cd[k], l_sd[k], l_spin[k],
                                                l_b[k], l_c[k], l_e[k], skid)
+        k0, k1, k2, k3 = l_k[0], l_k[1], l_k[2], l_k[3]
         ft0, ft1, ft2, ft3 = l_ft[0], l_ft[1], l_ft[2], l_ft[3]
         fn0, fn1, fn2, fn3 = l_fn[0], l_fn[1], l_fn[2], l_fn[3]
         dft0, dft1, dft2, dft3 = l_dft[0], l_dft[1], l_dft[2], l_dft[3]
