@@ -136,12 +136,15 @@ def _stack_f8x4(typingctx):
     return types.CPointer(types.float64)(), codegen
 
 
-if numba.config.DISABLE_JIT:
+if numba.config.DISABLE_JIT:      # plain Python: the same numbers without the intrinsics
     import numpy as _np
 
     def lanes4():
         """Four float64 of scratch (Python: an array)."""
         return _np.empty(4)
+
+    def _pow2(k):  # noqa: F811 - the Python twin of the intrinsic above
+        return math.ldexp(1.0, int(k))
 else:
     @numba.njit(inline="always", **_JIT)
     def lanes4():

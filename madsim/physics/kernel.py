@@ -10,7 +10,10 @@ positions -> track position, surfaces and laps. A car's state is read into local
 and written back at the end, so the sub-step loop runs in registers. Each wheel has its own
 slip (from its own contact-point velocity and, at the front, its own Ackermann angle) and its
 own spin; the two spins of an axle step together through the axle's differential
-(`_axle_spin`, spec 4.10).
+(`_axle_spin`, spec 4.10). The four tyres (load sensitivity, slip, magic formula) are one loop
+over four lanes on the stack, free of branches and libm calls (`physics.elementary`'s atan,
+sincos and exp, within 2 ulp), which LLVM turns into SIMD code; IEEE arithmetic without
+fastmath, so lanes, batch sizes and NUMBA_DISABLE_JIT all give the same bits.
 
 Low-speed stability (spec 5.2 step 6), documented choice: both slip denominators are regularised,
 `sx = (vt - w R) / max(|vt|, V_REG)` and `sy = v_lat / max(|v|, V_REG)` with V_REG = 2 m/s

@@ -1,6 +1,8 @@
 """The car kernel's speed work changes no bit: state hashes after N ticks equal the ones recorded
-from the kernel with TORCS's spin step and averages above 3 m/s and static toe (issue 12; before
-that, main's commit bb41c09).
+from the kernel whose tyres run in SIMD lanes with `physics.elementary`'s atan, sincos and exp
+(issue 13: a change of rounding only, see benchmarks/RESULTS.md "The four tyres in SIMD lanes";
+before that, the kernel with TORCS's spin step and averages above 3 m/s and static toe, issue 12,
+and main's commit bb41c09).
 
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
@@ -25,11 +27,11 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "884484a74ad230b7ae70e43a47cebc5bccf3678de179af0b971dee8cf8a24a77",
-    "six_contact": "5d03aacd62bf88de90783d58f7776fdf01fb8695e0f4a5c7d8de9a3a9ef200a6",
-    "four_wd": "37cf4c7903e5f4374c69bba006ed587ca5c28982ccc348ea520c375ad33eaede",
-    "vec_traffic": "fb8b243f2a73db13a8a998e51d830ec21edde5b1992646fe4e6c9002db900f51",
-    "env_ts": "2e3e668ad6fe3d14bb7fdf9b331bf683224c5c81f43ca965a99f6debd3925abc",
+    "one_car": "21cf057f5d53466f87a64c1d714801669676a56f02574a750b22dad45224cd31",
+    "six_contact": "2aafca69bd7afb7e18f770aafabedf90669c34edbabe3b4402b8e84f69e34829",
+    "four_wd": "725c851bf69c68364351be05fef6429a9a494979ac8b78f219856c7372077bf8",
+    "vec_traffic": "ed83f92779f2aa5745d60ea2232b38eb486f4496219d62aacdcdd81697a204a6",
+    "env_ts": "ab5e8d81055c5281ffe3e4eec06e6a060a16e1a3601ed0f5a9cdcfb7c0246189",
 }
 
 
