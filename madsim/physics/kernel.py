@@ -12,7 +12,10 @@ sub-step loop runs in registers; the vertical state (suspensions, heave, roll, p
 simuv2, docs/physics.md) is read and written in `st` by its own functions. Each wheel has its own
 slip (from its own contact-point velocity and, at the front, its own Ackermann angle) and its
 own spin; the two spins of an axle step together through the axle's differential
-(`_axle_spin`, spec 4.10).
+(`_axle_spin`, spec 4.10). The four tyres (load sensitivity, slip, magic formula) are one loop
+over four lanes on the stack, free of branches and libm calls (`physics.elementary`'s atan,
+sincos and exp, within 2 ulp), which LLVM turns into SIMD code; IEEE arithmetic without
+fastmath, so lanes, batch sizes and NUMBA_DISABLE_JIT all give the same bits.
 
 Low-speed stability (spec 5.2 step 6), documented choice: both slip denominators are regularised,
 `sx = (vt - w R) / max(|vt|, V_REG)` and `sy = v_lat / max(|v|, V_REG)` with V_REG = 2 m/s
@@ -36,6 +39,7 @@ import math
 import numba
 import numpy as np
 
+from madsim.physics import elementary as el
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_B, C_BF, C_BR, C_BRAKE_FRONT, C_CD, C_CF, C_CLIFT_F, C_CLIFT_R, C_CR, C_DRIVEN_F,
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
@@ -101,39 +105,41 @@ def engine_torque(cp, curve_w, curve_t, i, we, throttle):
     return tmax * (throttle * (1.0 + k) - k)
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def tyre_shape(s, b, c, e, skid):
     """Magic-formula force factor F(s) of spec 4.9 for slip magnitude s >= 0 (the slip clamp at
     1.5, the TORCS shape sin(C atan(B s (1-E) + E atan(B s))) times the skid term (1 + skid s)),
-    and its slope dF/ds (0 beyond the clamp)."""
+    and its slope dF/ds (0 beyond the clamp). atan, sin and cos are `elementary`'s (within 2 ulp)
+    and there is no branch, so a loop over wheels runs in SIMD lanes."""
     st = min(s, SLIP_MAX)
     u = b * st
-    g = u * (1.0 - e) + e * math.atan(u)
-    phi = c * math.atan(g)
-    sh = math.sin(phi)
-    if s > SLIP_MAX:
-        return sh * (1.0 + skid * st), 0.0
-    dsh = math.cos(phi) * c / (1.0 + g * g) * (b * (1.0 - e) + e * b / (1.0 + u * u))
-    return sh * (1.0 + skid * st), dsh * (1.0 + skid * st) + sh * skid
+    g = u * (1.0 - e) + e * el.atan(u)
+    phi = c * el.atan(g)
+    sh, ch = el.sincos(phi)
+    grow = 1.0 + skid * st
+    dsh = ch * c / (1.0 + g * g) * (b * (1.0 - e) + e * b / (1.0 + u * u))
+    return sh * grow, (dsh * grow + sh * skid if s <= SLIP_MAX else 0.0)
 
 
 @numba.njit(inline="always", **_JIT)
 def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
     """Isotropic combined-slip tyre of one axle per unit of load scale K = Fz mu lf friction:
     (ft, fn, dft) = force along and across the wheel (wheel frame) and d(ft)/d(w R) >= 0 for
-    the implicit spin step."""
+    the implicit spin step. Selects, no branches (see `tyre_shape`)."""
     vt = vwx * cd + vwy * sd
     vl = vwy * cd - vwx * sd
     dx = max(abs(vt), V_REG)
     sx = (vt - spin_speed) / dx
     sy = vl / max(math.sqrt(vwx * vwx + vwy * vwy), V_REG)
     s = math.sqrt(sx * sx + sy * sy)
-    if s <= 1e-6:
-        return 0.0, 0.0, b * c / dx
     f, df = tyre_shape(s, b, c, e, skid)
-    fs = f / s
-    cx, cy = sx / s, sy / s
-    return -fs * sx, -fs * sy, (max(df, 0.0) * cx * cx + fs * cy * cy) / dx
+    slipping = s > 1e-6
+    s1 = s if slipping else 1.0
+    fs = f / s1
+    cx, cy = sx / s1, sy / s1
+    if slipping:
+        return -fs * sx, -fs * sy, (max(df, 0.0) * cx * cx + fs * cy * cy) / dx
+    return 0.0, 0.0, b * c / dx
 
 
 @numba.njit(inline="always", **_JIT)
@@ -535,6 +541,21 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     toe0, toe1 = cp[i, C_TOE], cp[i, C_TOE + 1]               # static toe (spec 4.5), rad
     cd2, sd2 = math.cos(cp[i, C_TOE + 2]), math.sin(cp[i, C_TOE + 2])
     cd3, sd3 = math.cos(cp[i, C_TOE + 3]), math.sin(cp[i, C_TOE + 3])
+    # the four tyres as one loop over lanes (wheel k in lane k, on this call's stack): LLVM
+    # vectorises it (SIMD) because its trip count is not a constant it could unroll first
+    n_lanes = min(4, cp.shape[1])
+    l_vx, l_vy, l_cd, l_sd, l_spin = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
+    l_b, l_c, l_e = el.lanes4(), el.lanes4(), el.lanes4()
+    l_ft, l_fn, l_dft = el.lanes4(), el.lanes4(), el.lanes4()
+    l_fz, l_k, l_fric = el.lanes4(), el.lanes4(), el.lanes4()
+    l_mu, l_lf0, l_lfd, l_lfk, l_opl = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
+    for k in range(4):
+        l_mu[k], l_lfk[k], l_opl[k] = cp[i, C_KMU + k], cp[i, C_LFK + k], cp[i, C_OPLOAD + k]
+        l_lf0[k], l_lfd[k] = cp[i, C_LFMIN + k], cp[i, C_LFMAX + k] - cp[i, C_LFMIN + k]
+    l_b[0], l_b[1], l_b[2], l_b[3] = bf, bf, br, br
+    l_c[0], l_c[1], l_c[2], l_c[3] = cf, cf, cr, cr
+    l_e[0], l_e[1], l_e[2], l_e[3] = ef, ef, er, er
+    l_cd[2], l_sd[2], l_cd[3], l_sd[3] = cd2, sd2, cd3, sd3
 
     # state into locals
     x, y, yaw, r = st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R]
@@ -565,6 +586,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
             cd0, sd0 = math.cos(d0 + toe0), math.sin(d0 + toe0)     # heading = steer + toe
             cd1, sd1 = math.cos(d1 + toe1), math.sin(d1 + toe1)
+            l_cd[0], l_sd[0], l_cd[1], l_sd[1] = cd0, sd0, cd1, sd1
 
         # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
         # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
@@ -633,27 +655,28 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         fb0, fb1, fb2, fb3, packed = wheel_loads(st, i, cp, pt, tsc, yaw, dt)
         fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
 
-        # per-wheel force scale K = Fz mu camber lf(Fz) friction (spec 4.9), rolling resistance
-        k0 = fz0 * cp[i, C_KMU] * st[i, S_FRIC] * (cp[i, C_LFMIN] + (cp[i, C_LFMAX] - cp[i, C_LFMIN])
-                                                    * math.exp(cp[i, C_LFK] * fz0 / cp[i, C_OPLOAD]))
-        k1 = fz1 * cp[i, C_KMU + 1] * st[i, S_FRIC + 1] * (
-            cp[i, C_LFMIN + 1] + (cp[i, C_LFMAX + 1] - cp[i, C_LFMIN + 1])
-            * math.exp(cp[i, C_LFK + 1] * fz1 / cp[i, C_OPLOAD + 1]))
-        k2 = fz2 * cp[i, C_KMU + 2] * st[i, S_FRIC + 2] * (
-            cp[i, C_LFMIN + 2] + (cp[i, C_LFMAX + 2] - cp[i, C_LFMIN + 2])
-            * math.exp(cp[i, C_LFK + 2] * fz2 / cp[i, C_OPLOAD + 2]))
-        k3 = fz3 * cp[i, C_KMU + 3] * st[i, S_FRIC + 3] * (
-            cp[i, C_LFMIN + 3] + (cp[i, C_LFMAX + 3] - cp[i, C_LFMIN + 3])
-            * math.exp(cp[i, C_LFK + 3] * fz3 / cp[i, C_OPLOAD + 3]))
+        # rolling resistance force, N
         roll = (fz0 * st[i, S_ROLL] + fz1 * st[i, S_ROLL + 1] + fz2 * st[i, S_ROLL + 2]
                 + fz3 * st[i, S_ROLL + 3])
 
         # --- tyres (spec 4.9): each wheel its own slip from its own contact-point velocity
         # (body velocity + yaw rate x wheel position), forces by its load scale
-        ft0, fn0, dft0 = _tyre(vx - y0 * r, vy + a * r, cd0, sd0, w0 * rad0, bf, cf, ef, skid)
-        ft1, fn1, dft1 = _tyre(vx - y1 * r, vy + a * r, cd1, sd1, w1 * rad1, bf, cf, ef, skid)
-        ft2, fn2, dft2 = _tyre(vx - y2 * r, vy - b * r, cd2, sd2, w2 * rad2, br, cr, er, skid)
-        ft3, fn3, dft3 = _tyre(vx - y3 * r, vy - b * r, cd3, sd3, w3 * rad3, br, cr, er, skid)
+        # K = Fz mu camber lf(Fz) friction (spec 4.9), all four in one loop over lanes
+        l_fz[0], l_fz[1], l_fz[2], l_fz[3] = fz0, fz1, fz2, fz3
+        l_fric[0], l_fric[1] = st[i, S_FRIC], st[i, S_FRIC + 1]
+        l_fric[2], l_fric[3] = st[i, S_FRIC + 2], st[i, S_FRIC + 3]
+        l_vx[0], l_vx[1], l_vx[2], l_vx[3] = vx - y0 * r, vx - y1 * r, vx - y2 * r, vx - y3 * r
+        l_vy[0], l_vy[1], l_vy[2], l_vy[3] = vy + a * r, vy + a * r, vy - b * r, vy - b * r
+        l_spin[0], l_spin[1], l_spin[2], l_spin[3] = w0 * rad0, w1 * rad1, w2 * rad2, w3 * rad3
+        for k in range(n_lanes):
+            fz = l_fz[k]
+            l_k[k] = fz * l_mu[k] * l_fric[k] * (l_lf0[k] + l_lfd[k] * el.exp(l_lfk[k] * fz / l_opl[k]))
+            l_ft[k], l_fn[k], l_dft[k] = _tyre(l_vx[k], l_vy[k], l_cd[k], l_sd[k], l_spin[k],
+                                               l_b[k], l_c[k], l_e[k], skid)
+        k0, k1, k2, k3 = l_k[0], l_k[1], l_k[2], l_k[3]
+        ft0, ft1, ft2, ft3 = l_ft[0], l_ft[1], l_ft[2], l_ft[3]
+        fn0, fn1, fn2, fn3 = l_fn[0], l_fn[1], l_fn[2], l_fn[3]
+        dft0, dft1, dft2, dft3 = l_dft[0], l_dft[1], l_dft[2], l_dft[3]
         # forces in N; above SPIN_AVG_SPEED each is the mean of its raw value now and the last
         # one (TORCS's SimWheelUpdateForce: RELAXATION2(Ft, preFt, 50), same for Fn)
         fast = v > SPIN_AVG_SPEED

@@ -1,6 +1,9 @@
 """The car kernel's speed work changes no bit: state hashes after N ticks equal the ones recorded
 from the kernel with TORCS's suspension and the body's heave, roll and pitch (issue 12's
-suspension round; before that, TORCS's spin step and averages above 3 m/s and static toe).
+suspension round) whose tyres run in SIMD lanes with `physics.elementary`'s atan, sincos and exp
+(issue 13: a change of rounding only, see benchmarks/RESULTS.md "The four tyres in SIMD lanes";
+before that, the kernel with TORCS's spin step and averages above 3 m/s and static toe, issue 12,
+and main's commit bb41c09).
 
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
