@@ -28,11 +28,11 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "a1302a77d830359794f36c6607fb912d8881cf0529ebceaa4b6a2c4229a3c4ef",
-    "six_contact": "b4018f6deb01a36d9615373b75a7bcb24679d32b9cb8dabda84458a16a14aaa0",
-    "four_wd": "8752642ced31e4b1d4030525b1c856d0f3891226ca41799d6ca44784791f9b58",
-    "vec_traffic": "c04990e8de8152c9b0945b86e3fbaf752d512577d26fd859d87a68f93e8ab36f",
-    "env_ts": "4d39f2bb7f63ab0dfe9287910f68400134a69170a9dadb884c6cf2bf09fcde32",
+    "one_car": "b3adbb419efa6df9a9dd57254eddba3221c171af30052c367a9ebc4cf638ffd9",
+    "six_contact": "34faf00a584c971c3f373c61919113998d7d0372788d94047d51e3ec6d7ad304",
+    "four_wd": "96ff7dfa8683b360468c1bfb03635853705f889736eaa0a3f8487d33c7ad2f35",
+    "vec_traffic": "9d50fe4676b5246a891ae351d958b6c71064c0dde6ffd08070252062c926e4b9",
+    "env_ts": "62c8d747e1a6a9cbdf8e5f86091e787240b145195d65db9118172eb7b7876758",
 }
 
 
