@@ -636,8 +636,10 @@ def _separate(i, j, nx, ny, d, x, y, cars, blocked, travel):
     travel[j] += d * sj
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always", cache=True)
 def _add_pair(pair_out, count, i, j):
+    """Record the pair (i, j) in pair_out[:count] unless it is there; returns the new count.
+    Inlined: a call with the literal 0 would otherwise compile a second specialisation."""
     for k in range(count):
         if pair_out[k, 0] == i and pair_out[k, 1] == j:
             return count
