@@ -50,7 +50,7 @@ GEAR_UP = (5000, 6000, 6000, 6500, 7000)          # rpm x10 units, from gear 1..
 GEAR_DOWN = (0, 2500, 3000, 3000, 3500, 3500)     # from gear 1..6
 STRAIGHT_STOP_S = 16.0
 COLUMNS = ("curLapTime", "lastLapTime", "damage", "distRaced", "distFromStart", "speedX", "trackPos", "z",
-           "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3", "rpm", "gear")
+           "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3", "rpm", "gear", "speedZ")
 
 
 @dataclass
@@ -151,7 +151,7 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None) ->
         # the first lap's timer runs from the green light, later ones from the line
         cur_lap = race_t if world.laps[0] <= 1 else float(world.cur_lap_time[0])
         vals = (cur_lap, f.lastLapTime[0], f.damage[0], f.distRaced[0], f.distFromStart[0], f.speedX[0],
-                f.trackPos[0], f.z[0], *f.wheelSpinVel[0], f.rpm[0], f.gear[0])
+                f.trackPos[0], f.z[0], *f.wheelSpinVel[0], f.rpm[0], f.gear[0], f.speedZ[0])
         for c, v in zip(COLUMNS, vals):
             rec[c].append(float(v))
         if until_s is not None and race_t >= until_s:

@@ -50,7 +50,7 @@ SCR_FIELDS = (
     ScrField("rpm", 1, "float", "rad/s x 10", "engine speed as SCR reports it (about 1.047 x true rpm)"),
     ScrField("speedX", 1, "float", "km/h", "longitudinal speed in the car frame, forward positive"),
     ScrField("speedY", 1, "float", "km/h", "lateral speed in the car frame, left positive"),
-    ScrField("speedZ", 1, "float", "km/h", "vertical speed, up positive"),
+    ScrField("speedZ", 1, "float", "km/h", "the body's vertical velocity, up positive (TORCS's `DynGC.vel.z`)"),
     ScrField("track", 19, "float", "m",
              "19 rangefinders to the road edges at the client's angles (positive = clockwise), "
              "200 m range; all -1 when off the road"),

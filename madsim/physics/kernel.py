@@ -495,8 +495,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     """`nsub` explicit sub-steps of car i: the dynamic bicycle model of car spec 5.2 with TORCS's
     engine, gearbox, tyre and aero rules. Controls must be finite (any range: clipped here).
     Assumes small road grade/banking (gravity and load from the local road gradient) and no
-    contact (the contact solver runs between calls). One call of n sub-steps is bit-identical
-    to n calls of one (nothing is evaluated once per call that a sub-step changes). Returns
+    contact (the contact solver runs between calls). A shift in progress lowers the car's accel
+    command in `controls` itself to 0.1 (TORCS's ctrl->accelCmd, held to the end of the driver
+    call): callers pass the tick's own copy. One call of n sub-steps is bit-identical to n calls
+    of one on the same controls (nothing is evaluated once per call that a sub-step changes). Returns
     (largest squared speed, m^2/s^2; largest |yaw rate|, rad/s) at the start and the sub-steps'
     ends: bounds of how far the car went (contact whole ticks check them with its end pose)."""
     steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
@@ -591,14 +593,19 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
         # while it runs and the pedal is up, opens the clutch and caps the throttle; then a
         # requested gear is engaged (unless a shift is in progress). The step of the change
-        # itself is coupled, so the engine snaps to the wheels' speed (idle from rest).
+        # itself is coupled, so the engine snaps to the wheels' speed (idle from rest). The cap
+        # lowers the tick's accel command itself (TORCS's ctrl->accelCmd): it holds to the end
+        # of the driver call, past the shift's end (docs/physics.md, "Gear changes").
         c = 1.0 - clutch
         throttle = accel
         if shift_t > 0.0:
             shift_t -= dt
             if shift_t > 0.0 and clutch < 0.01:
                 c = 0.0
-                throttle = min(throttle, 0.1)
+                if accel > 0.1:
+                    accel = 0.1
+                    controls[i, U_ACCEL] = 0.1
+                throttle = accel
         if gear_req != gear and shift_t <= 0.0:
             gear = gear_req
             shift_t = cp[i, C_SHIFT] if gear != 0.0 else 0.0

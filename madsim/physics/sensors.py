@@ -136,7 +136,7 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
         row[O_RPM] = st[i, L.S_WE] * 10.0
         row[O_SX] = st[i, L.S_VX] * MS_TO_KMH
         row[O_SY] = st[i, L.S_VY] * MS_TO_KMH
-        row[O_SZ] = (st[i, L.S_GX] * st[i, L.S_VXG] + st[i, L.S_GY] * st[i, L.S_VYG]) * MS_TO_KMH
+        row[O_SZ] = st[i, L.S_VZ] * MS_TO_KMH      # the body's vertical velocity, as TORCS's DynGC.vel.z
         tpos = st[i, L.S_N] / half_width
         row[O_TPOS] = tpos
         if abs(tpos) <= 1.0:

@@ -229,7 +229,7 @@ class World:
         if substeps != SUBSTEPS and not (isinstance(substeps, (int, np.integer)) and 1 <= substeps <= 100):
             raise ValueError(f"substeps must be an integer in 1..100, got {substeps!r}")
         nsub = int(substeps)
-        u = np.ascontiguousarray(controls, dtype=np.float64)
+        u = np.array(controls, dtype=np.float64, order="C")   # a copy: a shift's cap writes its accel
         if u.shape != (self.n_cars, 5):
             raise ValueError(f"controls must have shape ({self.n_cars}, 5) = "
                              f"(steer, accel, brake, gear, clutch) per car, got {u.shape}")

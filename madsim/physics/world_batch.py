@@ -289,7 +289,7 @@ class WorldBatch:
             raise ValueError(f"substeps must be an integer in 1..100, got {substeps!r}")
         nsub = int(substeps)
         mask = np.asarray(mask, dtype=bool)
-        u = self.controls
+        u = self.controls.copy()      # the tick's own: a shift's cap writes its accel (World.step)
         kernel.check_controls(u, self._info)
         if self._info[0]:
             row, col = divmod(int(self._info[1]), 5)

@@ -205,6 +205,9 @@ def test_sensor_rows_bit_identical_to_the_allocating_kernel():
             st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW] = float(x), float(y), float(heading) + yaw
             st[i, L.S_S], st[i, L.S_N], st[i, L.S_THEAD] = s, n, float(heading)
             st[i, L.S_PIECE] = int(road.piece_at(s))
+        # speedZ reads the body's vertical velocity since issue 12's shift round (it read the road
+        # gradient x the velocity, which the pinned frames hold): give vz that value
+        st[:, L.S_VZ] = st[:, L.S_GX] * st[:, L.S_VXG] + st[:, L.S_GY] * st[:, L.S_VYG]
         world.race_pos[:] = rng.permutation(len(PINNED_POSES)) + 1
         suite = SensorSuite(world)
         suite.set_angles(2, np.linspace(-90.0, 90.0, 19))
