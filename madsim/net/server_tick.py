@@ -56,13 +56,13 @@ TABLE = (
     ("is_int", "b1", 1, "C"), ("literals", "u1", 1, "C"), ("literal_ends", "i8", 1, "C"),
     ("out", "u1", 2, "C"), ("out_len", "i8", 1, "C"), ("laps_seen", "f8", 1, "C"),
     ("decoded", "f8", 1, "C"), ("asked", "i8", 1, "C"), ("asked_focus", "f8", 1, "C"),
-    ("time_s", "f8", 1, "C"), ("on_track", "b1", 1, "C"),
+    ("time_s", "f8", 1, "C"), ("on_track", "b1", 1, "C"), ("u_tick", "f8", 2, "C"),
 )
 (INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, CP,
  CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
  BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
  PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
- OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS, TIME_S, ON_TRACK) = (np.int64(k) for k in range(len(TABLE)))
+ OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS, TIME_S, ON_TRACK, U_TICK) = (np.int64(k) for k in range(len(TABLE)))
 # int64 row numbers, not int literals: see array_table's views
 
 
@@ -79,7 +79,8 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
     DECODE: car i's datagram is inbox[i, :inlen[i]] (inlen[i] < 0: no answer this tick, its
       controls and focus request stay); into controls (N, 5), meta (N,) and the focus
       requests. Stops where a datagram is in no stock layout (meta[i] = -1 marks those).
-    STEP (when `stepping`, i.e. not in the countdown): `world_tick.step_world`; steps[0] = its
+    STEP (when `stepping`, i.e. not in the countdown): `world_tick.step_world` on u_tick, the
+      tick's copy of controls (a shift's throttle cap writes into it); steps[0] = its
       answer. Stops on a non-finite control (steps[0] < 0: nothing was changed) or something
       near (after sub-step steps[0]: World.finish_tick goes on from there).
     SENSE: `sensor_kernel` into flat (N, 79) and the focus cooldowns (`focus_due`); stops when
@@ -130,7 +131,14 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
         bp = (readonly(f8_matrix(t, BP_GEO)), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS), f8_vector(t, BP_PRM),
               f8_matrix(t, BP_WALL), f8_matrix(t, BP_VREF), i8_matrix(t, BP_PAIRS), i8_vector(t, BP_META),
               i1_vector(t, BP_FLAGS), f8_vector(t, BP_SLACK))
-        steps[0] = step_world(u, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
+        # the tick's own copy of the controls: a shift's throttle cap writes into it (TORCS's
+        # ctrl->accelCmd, held to the end of the driver call), never into what the client sent,
+        # which a silent client's car keeps using
+        u_tick = f8_matrix(t, U_TICK)
+        for i in range(u.shape[0]):
+            for j in range(u.shape[1]):
+                u_tick[i, j] = u[i, j]
+        steps[0] = step_world(u_tick, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
                               f8_matrix(t, PT), f8_matrix(t, SURF), f8_vector(t, TSC), dt, fuel_on, length,
                               i8_vector(t, INFO), f8_vector(t, X), f8_vector(t, Y), f8_vector(t, YAW),
                               i8_vector(t, PIECE), bp, near, snap, f8_vector(t, PATH),
@@ -189,6 +197,7 @@ class ServerTick:
         self.meta = np.zeros(n, dtype=np.int64)
         self.due = np.zeros(n, dtype=np.bool_)
         self.steps = np.zeros(1, dtype=np.int64)
+        self.u_tick = np.zeros_like(controls)     # the tick's copy the compiled step runs on
         self.cars = np.arange(n, dtype=np.int64)
         self.flat = np.zeros((n, N_VALUES))
         self.out = np.zeros((n, P.STATE_ENCODER.message_width), dtype=np.uint8)
@@ -215,7 +224,7 @@ class ServerTick:
         arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
                   self.steps, self.cars, *w[1:7], *w[10:15], *w[15], w[16], *w[18:], geo, runs, piece_run, angles,
                   origin, active, *focus, self.due, self.flat, is_int, lit, lit_end, self.out, self.out_len,
-                  self.laps_seen, *self._scratch)
+                  self.laps_seen, *self._scratch, self.u_tick)
         self._arrays = arrays             # alive as long as the table is used
         # the state and its scratch copy go as arguments: typed as World.step's callers see them
         # (C order for one car), so the physics kernels are compiled once for both
@@ -269,7 +278,7 @@ class ServerTick:
                     self.meta[i] = ctl.meta
         elif stage == STEP and stepping:
             if self.compiled and self.steps[0] >= 0:
-                self.world.finish_tick(self.u, nsub, int(self.steps[0]))
+                self.world.finish_tick(self.u_tick, nsub, int(self.steps[0]))
             else:
                 self.world.step(self.u, nsub)
             self._set_args()            # the World's contact arrays may have been replaced

@@ -11,6 +11,7 @@ from madsim.net import protocol as P
 from madsim.net.array_table import address_table
 from madsim.net.server import MAX_DAMAGE, RECV_BYTES
 from madsim.net.server_tick import DECODE, DONE, EVENT, SENSE, ServerTick
+from madsim.physics.layout import S_SHIFT
 from madsim.physics.sensors import SensorSuite
 
 
@@ -84,3 +85,37 @@ def test_address_table_refuses_an_array_of_another_kind():
         address_table([np.zeros(3), np.zeros((2, 4))], spec)
     with pytest.raises(ValueError, match="x must be a C-contiguous 1-d f8 array, got int64"):
         address_table([np.zeros(3, dtype=np.int64), np.zeros((2, 4), order="F")], spec)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_silent_client_keeps_its_own_throttle_after_a_shift_capped_it(compiled):
+    """A shift caps the throttle at 0.1 for the rest of that tick (TORCS writes the cap into
+    ctrl->accelCmd, which the robot rewrites at its next call). The server runs the tick on its
+    own copy of the controls: a client that then goes silent keeps the accel it sent (1.0), as
+    TORCS's scr_server reuses its last action, and the car moves as a World stepped with it."""
+    def world():
+        return make_world_factory("madsim-oval", ["car1-trb1"], 1, fuel=True, damage=True)(0)
+    served, ref = world(), world()
+    suite = SensorSuite(served, rng=np.random.default_rng(1))
+    inbox = np.zeros((1, RECV_BYTES), dtype=np.uint8)
+    inlen = np.full(1, -1, dtype=np.int64)
+    controls = np.zeros((1, 5))
+    tick = ServerTick(served, suite, controls, inbox, inlen, MAX_DAMAGE)
+    tick.compiled = compiled and tick.compiled
+    tick.run(SENSE, DONE, False, 0, 0)
+    capped = 0
+    for k in range(120):
+        gear = 1 if k < 60 else 2                       # the 1-2 shift at tick 60, then silence
+        if k <= 60:
+            msg = P.encode_controls(accel=1.0, gear=gear, focus=None)
+            inbox[0, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
+            inlen[0] = len(msg)
+        else:
+            inlen[0] = -1
+        tick.run(DECODE, DONE, True, 10, 0)
+        u = np.array([[0.0, 1.0, 0.0, gear, 0.0]])
+        ref.step(u)
+        assert controls[0, 1] == 1.0, f"tick {k}: the client's accel was overwritten"
+        assert np.array_equal(served.state, ref.state), f"tick {k}"
+        capped += served.state[0, S_SHIFT] > 0.0
+    assert capped > 0                                   # the shift (and its cap) did happen
