@@ -87,38 +87,31 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
     row[L.C_CLIFT_F], row[L.C_CLIFT_R] = c.clift
     row[L.C_HALF_LEN], row[L.C_HALF_WID] = c.body_length / 2.0, c.body_width / 2.0
     row[L.C_REACH] = float(np.max(np.hypot(c.wheel_pos[:, 0], c.wheel_pos[:, 1])))   # CG to farthest wheel
-    row[L.C_WY:L.C_WY + 4] = c.wheel_pos[:, 1]
-    row[L.C_RAD:L.C_RAD + 4] = c.wheel_radius
-    row[L.C_KMU:L.C_KMU + 4] = c.tyre_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))
-    row[L.C_OPLOAD:L.C_OPLOAD + 4] = c.operating_load
-    row[L.C_LFMIN:L.C_LFMIN + 4] = c.load_factor_min
-    row[L.C_LFMAX:L.C_LFMAX + 4] = c.load_factor_max
-    row[L.C_LFK:L.C_LFK + 4] = c.load_factor_k
-    row[L.C_W0:L.C_W0 + 4] = c.static_wheel_load
-    row[L.C_RIDE0:L.C_RIDE0 + 4] = c.ride_height
-    row[L.C_KB:L.C_KB + 4] = c.brake_kb
-    row[L.C_TOE:L.C_TOE + 4] = c.toe
-    # suspension, anti-roll bars, wings and body inertias of the vertical dynamics (docs/physics.md)
     bell = np.maximum(c.susp_bellcrank, 1e-6)
-    row[L.C_SPRING:L.C_SPRING + 4] = np.maximum(c.susp_spring, 1.0 / bell ** 2)
-    row[L.C_BELL:L.C_BELL + 4] = bell
-    row[L.C_COURSE:L.C_COURSE + 4] = c.susp_course
-    row[L.C_PACK:L.C_PACK + 4] = c.susp_packers
-    row[L.C_DBUMP1:L.C_DBUMP1 + 4] = c.susp_slow_bump
-    row[L.C_DBUMP2:L.C_DBUMP2 + 4] = c.susp_fast_bump
-    row[L.C_VBUMP:L.C_VBUMP + 4] = c.susp_bump_threshold
-    row[L.C_DREB1:L.C_DREB1 + 4] = c.susp_slow_rebound
-    row[L.C_DREB2:L.C_DREB2 + 4] = c.susp_fast_rebound
-    row[L.C_VREB:L.C_VREB + 4] = c.susp_rebound_threshold
-    row[L.C_WMASS:L.C_WMASS + 4] = np.maximum(c.wheel_mass, 1e-3)
-    row[L.C_WX:L.C_WX + 4] = c.wheel_pos[:, 0]
-    row[L.C_ARB:L.C_ARB + 2] = c.anti_roll_spring
-    row[L.C_RC:L.C_RC + 2] = c.roll_center_height
-    row[L.C_WGKX:L.C_WGKX + 2] = c.wing_kx
-    row[L.C_WGKZ:L.C_WGKZ + 2] = c.wing_kz
-    row[L.C_WGANG:L.C_WGANG + 2] = c.wing_angle
-    row[L.C_WGX:L.C_WGX + 2] = c.wing_x
-    row[L.C_WGZ:L.C_WGZ + 2] = c.wing_zpos
+    per_wheel = (      # (first column, its four values in wheel order FR FL RR RL)
+        (L.C_WY, c.wheel_pos[:, 1]), (L.C_RAD, c.wheel_radius),
+        (L.C_KMU, c.tyre_mu * (1.0 + 0.05 * np.sin(-18.0 * c.camber))),
+        (L.C_OPLOAD, c.operating_load), (L.C_LFMIN, c.load_factor_min),
+        (L.C_LFMAX, c.load_factor_max), (L.C_LFK, c.load_factor_k),
+        (L.C_W0, c.static_wheel_load), (L.C_RIDE0, c.ride_height), (L.C_KB, c.brake_kb),
+        (L.C_TOE, c.toe),
+        # suspension of the vertical dynamics (docs/physics.md)
+        (L.C_SPRING, np.maximum(c.susp_spring, 1.0 / bell ** 2)), (L.C_BELL, bell),
+        (L.C_COURSE, c.susp_course), (L.C_PACK, c.susp_packers),
+        (L.C_DBUMP1, c.susp_slow_bump), (L.C_DBUMP2, c.susp_fast_bump),
+        (L.C_VBUMP, c.susp_bump_threshold), (L.C_DREB1, c.susp_slow_rebound),
+        (L.C_DREB2, c.susp_fast_rebound), (L.C_VREB, c.susp_rebound_threshold),
+        (L.C_WMASS, np.maximum(c.wheel_mass, 1e-3)), (L.C_WX, c.wheel_pos[:, 0]),
+    )
+    for col, values in per_wheel:
+        row[col:col + 4] = values
+    per_axle = (       # (first column, front and rear): anti-roll bars, roll centres, wings
+        (L.C_ARB, c.anti_roll_spring), (L.C_RC, c.roll_center_height), (L.C_WGKX, c.wing_kx),
+        (L.C_WGKZ, c.wing_kz), (L.C_WGANG, c.wing_angle), (L.C_WGX, c.wing_x),
+        (L.C_WGZ, c.wing_zpos),
+    )
+    for col, values in per_axle:
+        row[col:col + 2] = values
     row[L.C_IXX], row[L.C_IYY] = c.ixx, c.iyy
     # overall ratios and drive inertias per gear slot (slot = gear + 1; slot 1 = neutral)
     share_i = 0.25 if c.drive_type == "4WD" else 0.5
