@@ -82,8 +82,21 @@ def hold_line(world, target_n=0.0, gain=0.5):
     return np.clip((angle - gain * (world.n - target_n) / (world.track.width / 2)) / 0.366519, -1, 1)
 
 
+def drive_steady(world, speed, gear, ticks, gain):
+    """Step car 0 `ticks` ticks in `gear` on the line (`hold_line`) at `speed` m/s (throttle
+    proportional to the speed error with `gain` per m/s, clipped to [0, 1])."""
+    u = np.zeros((1, 5))
+    u[0, 3] = gear
+    for _ in range(ticks):
+        u[0, 0] = hold_line(world)[0]
+        u[0, 1] = float(np.clip((speed - world.vx[0]) * gain, 0.0, 1.0))
+        world.step(u)
+
+
 @pytest.fixture
 def ph():
-    """Helpers for physics tests: ph.sedan(**changes), ph.world_at(track, car, ...), ph.hold_line(world)."""
+    """Helpers for physics tests: ph.sedan(**changes), ph.world_at(track, car, ...),
+    ph.hold_line(world), ph.drive_steady(world, speed, gear, ticks, gain)."""
     import types
-    return types.SimpleNamespace(sedan=sedan_without_lift, world_at=world_at, hold_line=hold_line)
+    return types.SimpleNamespace(sedan=sedan_without_lift, world_at=world_at, hold_line=hold_line,
+                                 drive_steady=drive_steady)

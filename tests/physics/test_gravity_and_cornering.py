@@ -183,12 +183,7 @@ def test_lateral_load_transfer_through_roll_centres_split_by_roll_stiffness(make
     car = ph.sedan(susp_spring=np.full(4, k), roll_center_height=np.array([rc, rc]),
                    anti_roll_spring=np.array([arb_front, 0.0]))
     w = ph.world_at(track, car, s=10.0, n=0.0, speed=15.0, gear=2)
-    u = np.zeros((1, 5))
-    u[0, 3] = 2
-    for _ in range(150):
-        u[0, 0] = ph.hold_line(w)[0]
-        u[0, 1] = float(np.clip((15.0 - w.vx[0]) * 0.5, 0.0, 1.0))
-        w.step(u)
+    ph.drive_steady(w, speed=15.0, gear=2, ticks=150, gain=0.5)
     m_ay = car.mass_total * float(w.state[0, L.S_AY])
     assert m_ay > 0.3 * car.mass_total * G                 # a real corner: 0.38 g
     fz = w.wheel_load[0]

@@ -83,12 +83,7 @@ def test_roll_angle_in_a_steady_turn_is_the_roll_moment_over_the_roll_stiffness(
     car = ph.sedan(roll_center_height=np.array([0.1, 0.1]))
     track = make_track([segment("c", "lft", radius=100.0, arc=360)], width=20.0)
     w = ph.world_at(track, car, speed=20.0, gear=3)
-    u = np.zeros((1, 5))
-    u[0, 3] = 3
-    for _ in range(250):
-        u[0, 0] = ph.hold_line(w)[0]
-        u[0, 1] = float(np.clip((20.0 - w.vx[0]) * 2.0, 0.0, 1.0))
-        w.step(u)
+    ph.drive_steady(w, speed=20.0, gear=3, ticks=250, gain=2.0)
     st = w.state[0]
     ay = st[L.S_AY]
     assert ay > 3.0
