@@ -366,16 +366,27 @@ def _corner_excess(geo, bar, x, y, yaw, piece, cars, i, k):
 
 @numba.njit(cache=True)
 def _point_excess(geo, bar, hint, px, py):
-    """How far a point is beyond the nearer barrier line (m, <= 0 inside), located by walking
-    from piece `hint`, and the unit inward normal there."""
+    """How far a point is beyond the nearer barrier line (m, <= 0 inside, measured across the
+    track as TORCS's toLeft / toRight), located by walking from piece `hint`, and the unit
+    inward normal there: the track's lateral direction, tilted by the barrier line's slope
+    along the piece where its offset changes (a side that widens or narrows), as TORCS's
+    per-segment barrier normal, normal to the side's outer edge (docs/physics.md)."""
     p, q, n = locate_from(geo, hint, px, py)
-    u = min(max(q / geo[p, GEO_LEN], 0.0), 1.0)
+    length = geo[p, GEO_LEN]
+    u = min(max(q / length, 0.0), 1.0)
     a = _heading(geo, p, q)
+    sa, ca = math.sin(a), math.cos(a)
+    kind = geo[p, GEO_KIND]
+    curv = 0.0 if kind == 0.0 else (1.0 / geo[p, GEO_R] if kind == 1.0 else -1.0 / geo[p, GEO_R])
     if n >= 0.0:
         b = bar[p, 0] + u * (bar[p, 1] - bar[p, 0])
-        return n - b, math.sin(a), -math.cos(a)
+        slope = (bar[p, 1] - bar[p, 0]) / (length * max(1.0 - curv * b, 0.1))   # d offset / d arc
+        k = 1.0 / math.sqrt(1.0 + slope * slope)
+        return n - b, (slope * ca + sa) * k, (slope * sa - ca) * k
     b = bar[p, 2] + u * (bar[p, 3] - bar[p, 2])
-    return -n - b, -math.sin(a), math.cos(a)
+    slope = (bar[p, 3] - bar[p, 2]) / (length * max(1.0 + curv * b, 0.1))
+    k = 1.0 / math.sqrt(1.0 + slope * slope)
+    return -n - b, (slope * ca - sa) * k, (slope * sa + ca) * k
 
 
 @numba.njit(cache=True)
@@ -518,8 +529,9 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
                 dot = nx * sx + ny * sy
                 if excess < -OTHER_LEVEL_M or dot <= 0.0:
                     continue     # another level's wall, or seen from behind: the projection handles it
-                # TORCS's barrier normal: the track's lateral direction there, never the normal
-                # pymunk found at a joint of the polyline; the depth along it
+                # TORCS's barrier normal: the track's lateral direction there (tilted where the
+                # side's width changes), never the normal pymunk found at a joint of the
+                # polyline; the depth along it
                 nx, ny, dmax = sx, sy, max(excess, dmax * dot)
             elif not _pit_cap_ok(geo, bar, piece[i], px, py, nx, ny):
                 continue         # a seam between two segments of one pit wall's face

@@ -627,16 +627,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             teng = 0.0
         t_drive = teng * ratio * min(3.0 * c, 1.0)
 
-        # --- body velocity, road gradient in the body frame
+        # --- body velocity in the body frame
         vx = vxg * cy + vyg * sy
         vy = vyg * cy - vxg * sy
-        gx, gy = st[i, S_GX], st[i, S_GY]
-        gbx = gx * cy + gy * sy
-        gby = gy * cy - gx * sy
         m = mass_dry + fuel
-
-        ax_kin = ax_s - G * gbx
-        ay_kin = ay_s - G * gby
         # --- aero (spec 4.7): body downforce with the ground-effect factor of the last ride
         # heights; wings at their angle + pitch + the body's climb angle (TORCS's wing.cpp)
         v = math.sqrt(vx * vx + vy * vy)
@@ -659,8 +653,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             wfz = fzw0 + fzw1
             wmy = -(fzw0 * xw0 + fxw0 * zw0 + fzw1 * xw1 + fxw1 * zw1)
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
-        fb0, fb1, fb2, fb3, packed = wheel_loads(st, i, cp, pt, tsc, yaw, dt)
+        # and the road gradient in the body frame from the road under the four wheels (TORCS's
+        # SimCarUpdateForces: front minus rear over the wheelbase, left minus right over the track)
+        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, tsc, yaw, dt)
         fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
+        ax_kin = ax_s - G * gbx
+        ay_kin = ay_s - G * gby
 
         # rolling resistance force, N
         roll = (fz0 * st[i, S_ROLL] + fz1 * st[i, S_ROLL + 1] + fz2 * st[i, S_ROLL + 2]

@@ -129,7 +129,9 @@ def wheel_loads(st, i, cp, pt, tsc, yaw, dt):
     """Vertical wheel forces of car i on the body (N, wheel order) with heading `yaw` (rad), from
     its suspensions and anti-roll bars at the body's present heave, roll and pitch
     (docs/physics.md); stores each wheel's ride height and suspension state. Returns (f0, f1,
-    f2, f3, packer mask: bit k set when wheel k sits on its packers); a tyre's load is max(f, 0)."""
+    f2, f3, packer mask: bit k set when wheel k sits on its packers, the road gradient along
+    and across the body (+: rising ahead, rising to the left) from the road heights under the
+    four wheels); a tyre's load is max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
     sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
     dpsi = yaw - st[i, S_THEAD]
@@ -137,9 +139,12 @@ def wheel_loads(st, i, cp, pt, tsc, yaw, dt):
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
+    road_fr = road_lr = 0.0       # front minus rear, left minus right sums of the road heights
     for k in range(4):
-        ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
-                - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
+        road = _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi)
+        road_fr += road if k < 2 else -road
+        road_lr += road if k % 2 == 1 else -road
+        ride = zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr - road
         st[i, S_RIDE + k] = ride
         v, state = _wheel_travel(st, i, cp, k, ride, dt)
         if state == 1:
@@ -155,9 +160,13 @@ def wheel_loads(st, i, cp, pt, tsc, yaw, dt):
     # anti-roll bars: k_arb (x_left - x_right), + on the right wheel, - on the left
     arb_f = cp[i, C_ARB] * (st[i, S_SUSP + 1] - st[i, S_SUSP])
     arb_r = cp[i, C_ARB + 1] * (st[i, S_SUSP + 3] - st[i, S_SUSP + 2])
+    # the road's gradient in the body frame from the heights under the four wheels (TORCS's
+    # SimCarUpdateForces): (front pair - rear pair) / (2 wheelbase), (left - right) / (2 track)
+    wb2 = (cp[i, C_WX] + cp[i, C_WX + 1]) - (cp[i, C_WX + 2] + cp[i, C_WX + 3])
+    tr2 = (cp[i, C_WY + 1] + cp[i, C_WY + 3]) - (cp[i, C_WY] + cp[i, C_WY + 2])
     return (_wheel_force(st, i, cp, 0, v0, e0, arb_f, dt), _wheel_force(st, i, cp, 1, v1, e1, -arb_f, dt),
             _wheel_force(st, i, cp, 2, v2, e2, arb_r, dt), _wheel_force(st, i, cp, 3, v3, e3, -arb_r, dt),
-            mask)
+            mask, road_fr / wb2, road_lr / tr2)
 
 
 @numba.njit(inline="always", **_JIT)

@@ -1,5 +1,7 @@
 """The car kernel's speed work changes no bit: state hashes after N ticks equal the ones recorded
-from the kernel whose shift cap holds the throttle at 0.1 to the end of the driver call
+from the kernel that takes gravity along and across the road from the road heights under the
+four wheels (issue 12, TORCS's SimCarUpdateForces; every scenario on a sloped or cambered road
+moved: one car, six in contact, make_vec, the env), whose shift cap holds the throttle at 0.1 to the end of the driver call
 (issue 12, TORCS's ctrl->accelCmd; every scenario that shifts moved) and whose speedZ reads the
 body's vertical velocity (the env scenarios' observations moved), with TORCS's suspension
 and the body's heave, roll and pitch (issue 12's suspension round) whose tyres run in SIMD lanes with `physics.elementary`'s atan, sincos and exp
@@ -30,11 +32,11 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "b3adbb419efa6df9a9dd57254eddba3221c171af30052c367a9ebc4cf638ffd9",
-    "six_contact": "24c1314b85ad8e8de28cd020b6dac4bb047879d7eb742f17ded6dc8004f07b0d",
+    "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
+    "six_contact": "98604491574b2767d3bdc9f710405f6faebeb52e83dae59d16b61f048be8cb0d",
     "four_wd": "edc9caf9273053a113cdb9e78ffff85899452d3137cea731561964eaf2711949",
-    "vec_traffic": "50cb639585dd86fcdf97d71499beefea805cd5f1af0121a81c9d6eb9ef6173a4",
-    "env_ts": "ae209a2e9f2d199ae068ba6a8f1f2daf0e694817c75e87cf6eea369cc7db9659",
+    "vec_traffic": "11df21ccf59aad0a354cf93b3e5d9c8e2e6a652c32499799e130e32aa65048ad",
+    "env_ts": "5bc844c7e1240baca25e22297e3455f3df1b93d99ea14c7a4d46af7afbdb93c7",
 }
 
 

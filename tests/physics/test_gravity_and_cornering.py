@@ -192,3 +192,26 @@ def test_lateral_load_transfer_through_roll_centres_split_by_roll_stiffness(make
     # right minus left per axle = twice the transfer (the sedan's static loads are symmetric)
     assert (fz[0] - fz[1]) / 2 == pytest.approx(m_ay * rc * kf / (kf + kr) / t_f, rel=0.02)
     assert (fz[2] - fz[3]) / 2 == pytest.approx(m_ay * rc * kr / (kf + kr) / t_r, rel=0.02)
+
+
+def test_gravity_from_the_road_under_the_four_wheels(make_track, ph):
+    """TORCS takes the slope from the road heights under the wheels (front pair minus rear pair
+    over the wheelbase, SimCarUpdateForces), not from the road at the CG: with the CG on the
+    flat 0.1 m before a 10 % ramp and the front axle on the ramp, gravity pulls the car back by
+    m g 0.10 (a - 0.1) / (a + b), where the road at the CG is flat."""
+    grade, d = 0.10, 0.1
+    track = make_track([segment("flat", "str", lg=500), segment("up", "str", lg=500, grade=grade * 100,
+                                                                profil="linear")], rolling=0.0)
+    assert track.grade_at(499.0) == pytest.approx(0.0, abs=1e-9)
+    assert track.grade_at(501.0) == pytest.approx(grade, rel=1e-5)
+    car = ph.sedan()
+    a, b = float(car.wheel_pos[0, 0]), float(-car.wheel_pos[2, 0])
+    w = ph.world_at(track, car, s=500.0 - d, speed=0.0, gear=0)      # neutral, no brake
+    u = np.zeros((1, 5))
+    w.step(u)                                                        # the wheels take up the roll
+    v1 = float(w.vx[0])
+    for _ in range(4):
+        w.step(u)
+    expected = -G * grade * (a - d) / (a + b) * car.mass_total / free_mass(car)
+    assert (float(w.vx[0]) - v1) / 0.08 == pytest.approx(expected, rel=0.02)
+    assert abs(w.s[0] - (500.0 - d)) < 0.01                          # still straddling the kink

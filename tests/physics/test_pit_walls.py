@@ -277,3 +277,41 @@ def test_track_maps_draw_the_pit_walls(kinds_track):
     paths = drawn[0].get_paths()
     assert len(paths) == quads.shape[0]
     np.testing.assert_allclose(paths[0].vertices[:4], quads[0], atol=1e-9)
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_barrier_normal_is_tilted_where_the_side_narrows(tmp_path, side):
+    """TORCS's barrier normal is normal to the side's outer edge over the segment (track4.cpp),
+    so where a side narrows from 10 m to 2 m over 20 m the normal leans back against the
+    direction of travel: (slope, -/+1) / sqrt(1 + slope^2) in the track's (along, left) frame,
+    slope = -0.4 (aalborg's run-off at 196-216 m narrows from 15 to 2 m over 20 m: TORCS's car
+    hits it at 83 km/h and leaves at 48). The excess is measured across the track (TORCS's
+    toLeft / toRight). Straight track along +x: along = +x, left = +y."""
+    from madsim.physics.contact import _barrier_table
+    from madsim.physics.contact_kernels import _point_excess
+
+    def seg(name, w0, w1, length):
+        sub = (f'<section name="{side.title()} Side"><attnum name="start width" val="{w0}"/>'
+               f'<attnum name="end width" val="{w1}"/></section>')
+        return segment(name, "str", lg=length)[: -len("</section>")] + sub + "</section>"
+
+    p = tmp_path / "narrow.xml"
+    p.write_text(track_xml([seg("wide", 10, 10, 100), seg("narrow", 10, 2, 20), seg("tight", 2, 2, 100)],
+                           width=WIDTH, name="narrow"), encoding="utf-8")
+    track = load_track(p)
+    geo, bar = np.ascontiguousarray(track.geo, dtype=np.float64), _barrier_table(track)
+    slope, sign = -0.4, (1.0 if side == "left" else -1.0)
+    b = WIDTH / 2 + 10.0 + slope * 10.0                    # barrier offset 10 m into the narrowing
+    x, y, _, a = (float(v) for v in track.pose(110.0, sign * (b + 0.05)))
+    hint = int(track.piece_at(110.0))
+    excess, nx, ny = _point_excess(geo, bar, hint, x, y)
+    k = 1.0 / math.hypot(1.0, slope)
+    along, left = slope * k, -sign * k                     # the inward normal in the track frame
+    assert excess == pytest.approx(0.05, abs=1e-6)
+    assert nx == pytest.approx(along * math.cos(a) - left * math.sin(a), abs=1e-9)
+    assert ny == pytest.approx(along * math.sin(a) + left * math.cos(a), abs=1e-9)
+    # where the side keeps its width the normal is the lateral direction, as before
+    x, y, _, a = (float(v) for v in track.pose(50.0, sign * (WIDTH / 2 + 10.0 + 0.05)))
+    excess, nx, ny = _point_excess(geo, bar, 0, x, y)
+    assert excess == pytest.approx(0.05, abs=1e-6)
+    assert (nx, ny) == pytest.approx((sign * math.sin(a), -sign * math.cos(a)), abs=1e-12)
