@@ -125,15 +125,14 @@ def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
 
 
 @numba.njit(inline="always", **_JIT)
-def wheel_loads(st, i, cp, pt, tsc, yaw, dt):
-    """Vertical wheel forces of car i on the body (N, wheel order) with heading `yaw` (rad), from
-    its suspensions and anti-roll bars at the body's present heave, roll and pitch
-    (docs/physics.md); stores each wheel's ride height and suspension state. Returns (f0, f1,
-    f2, f3, packer mask: bit k set when wheel k sits on its packers); a tyre's load is max(f, 0)."""
+def wheel_loads(st, i, cp, pt, tsc, sp, cpsi, spsi, dt):
+    """Vertical wheel forces of car i on the body (N, wheel order), from its suspensions and
+    anti-roll bars at the body's present heave, roll and pitch (docs/physics.md); sp = sin
+    pitch, (cpsi, spsi) = (cos, sin) of yaw - track heading (the caller has them). Stores each
+    wheel's ride height and suspension state. Returns (f0, f1, f2, f3, packer mask: bit k set
+    when wheel k sits on its packers); a tyre's load is max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
-    sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
-    dpsi = yaw - st[i, S_THEAD]
-    cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
+    sr = math.sin(st[i, S_ROLLA])
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
