@@ -112,16 +112,23 @@ def _road_z(pt, tsc, p, q, n):
 
 
 @numba.njit(inline="always", **_JIT)
-def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
-    """Road height under wheel k of car i (its static x, y from the CG along the track frame)."""
+def _cg_on_piece(st, i, pt, tsc):
+    """(piece, distance along it, m (may be past either end), lateral offset, m) of car i's CG."""
     p = int(st[i, S_PIECE])
     q = st[i, S_S] - pt[p, P_S0]
     if q < -0.5 * tsc[T_LENGTH]:
         q += tsc[T_LENGTH]
     elif q > 0.5 * tsc[T_LENGTH]:
         q -= tsc[T_LENGTH]
+    return p, q, st[i, S_N]
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
+    """Road height under wheel k of car i (its static x, y from the CG (p, q, n: `_cg_on_piece`)
+    along the track frame)."""
     xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, st[i, S_N] + xk * spsi + yk * cpsi)
+    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi)
 
 
 @numba.njit(inline="always", **_JIT)
@@ -133,12 +140,13 @@ def wheel_loads(st, i, cp, pt, tsc, sp, cpsi, spsi, dt):
     when wheel k sits on its packers); a tyre's load is max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
     sr = math.sin(st[i, S_ROLLA])
+    p, q, n = _cg_on_piece(st, i, pt, tsc)
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
     for k in range(4):
         ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
-                - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
+                - _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi))
         st[i, S_RIDE + k] = ride
         v, state = _wheel_travel(st, i, cp, k, ride, dt)
         if state == 1:
@@ -190,12 +198,13 @@ def settle(st, cp, pt, tsc, rows):
         i = rows[j]
         dpsi = st[i, S_YAW] - st[i, S_THEAD]
         cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
+        p, q, n = _cg_on_piece(st, i, pt, tsc)
         h0 = h1 = h2 = h3 = 0.0
         for k in range(4):
             bell = cp[i, C_BELL + k]
             r = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / (cp[i, C_SPRING + k] * bell * bell)
             r = min(max(r, cp[i, C_PACK + k]), cp[i, C_COURSE + k] / bell)
-            hk = r + _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi)      # body reference, global z
+            hk = r + _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi)      # body reference, global z
             if k == 0:
                 h0 = hk
             elif k == 1:
@@ -217,7 +226,7 @@ def settle(st, cp, pt, tsc, rows):
         st[i, S_ROLLR] = st[i, S_PITCHR] = 0.0
         for k in range(4):
             ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
-                    - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
+                    - _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi))
             st[i, S_RIDE + k] = ride
             st[i, S_SUSP + k] = min(max(ride, cp[i, C_PACK + k]) * cp[i, C_BELL + k], cp[i, C_COURSE + k])
             st[i, S_WVZ + k] = 0.0

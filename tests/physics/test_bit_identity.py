@@ -3,7 +3,10 @@ from the kernel whose shift cap holds the throttle at 0.1 to the end of the driv
 (issue 12, TORCS's ctrl->accelCmd; every scenario that shifts moved) and whose speedZ reads the
 body's vertical velocity (the env scenarios' observations moved), with TORCS's suspension
 and the body's heave, roll and pitch (issue 12's suspension round) whose tyres run in SIMD lanes with `physics.elementary`'s atan, sincos and exp
-(issue 13: a change of rounding only, see benchmarks/RESULTS.md "The four tyres in SIMD lanes";
+(issue 13: a change of rounding only, see benchmarks/RESULTS.md "The four tyres in SIMD lanes")
+and whose sub-step takes cos/sin(yaw - track heading) from the piece walk and the wings' climb
+angle without atan2 (issue 13, rounding only: RESULTS "The car sub-step with three libm calls fewer";
+six_contact and four_wd moved, the others kept their bits;
 before that, the kernel with TORCS's spin step and averages above 3 m/s and static toe, issue 12,
 and main's commit bb41c09).
 
@@ -31,8 +34,8 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "b3adbb419efa6df9a9dd57254eddba3221c171af30052c367a9ebc4cf638ffd9",
-    "six_contact": "24c1314b85ad8e8de28cd020b6dac4bb047879d7eb742f17ded6dc8004f07b0d",
-    "four_wd": "edc9caf9273053a113cdb9e78ffff85899452d3137cea731561964eaf2711949",
+    "six_contact": "0e2aa1abdfd1aa21d01b36afe157d7ec91be28a720e45ca5002cdaaf484d120b",
+    "four_wd": "0e6adecebb933fafb31d6f92840bd6ae6250a46e1406dc72f6f6ba986bb9899c",
     "vec_traffic": "50cb639585dd86fcdf97d71499beefea805cd5f1af0121a81c9d6eb9ef6173a4",
     "env_ts": "ae209a2e9f2d199ae068ba6a8f1f2daf0e694817c75e87cf6eea369cc7db9659",
 }
