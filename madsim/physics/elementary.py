@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
@@ -80,7 +81,7 @@ def _pow2(typingctx, k):
 def exp(x):
     """e^x for finite x, within 2 ulp on [EXP_MIN, EXP_MAX]; x clamped to that range."""
     x = min(max(x, EXP_MIN), EXP_MAX)
-    k = math.floor(x * _INV_LN2 + 0.5)
+    k = np.floor(x * _INV_LN2 + 0.5)          # a float: no round trip through an integer
     r = (x - k * _LN2_HI) - k * _LN2_LO
     r2 = r * r
     r4 = r2 * r2
@@ -113,7 +114,7 @@ def atan(x):
 def sincos(x):
     """(sin x, cos x) for |x| up to ~1e5 rad (the reduction's k pi/2 is exact below 2^20 pi/2);
     within 2 ulp for |x| <= 100."""
-    k = math.floor(x * _TWO_OVER_PI + 0.5)
+    k = np.floor(x * _TWO_OVER_PI + 0.5)      # a float: no round trip through an integer
     r = ((x - k * _P1) - k * _P2) - k * _P3
     z = r * r
     z2 = z * z
@@ -122,7 +123,7 @@ def sincos(x):
     s = r + r * z * ps
     pc = ((_C4 + _C6 * z) + (_C8 + _C10 * z) * z2) + (((_C12 + _C14 * z) + (_C16 + _C18 * z) * z2) * z4)
     c = 1.0 - (0.5 * z - z2 * pc)
-    q = k - 4.0 * math.floor(0.25 * k)        # quadrant 0..3
+    q = k - 4.0 * np.floor(0.25 * k)          # quadrant 0..3
     odd = q == 1.0 or q == 3.0
     s_q, c_q = (c, s) if odd else (s, c)
     return (-s_q if q >= 2.0 else s_q), (-c_q if q == 1.0 or q == 2.0 else c_q)
@@ -137,11 +138,10 @@ def _stack_f8x4(typingctx):
 
 
 if numba.config.DISABLE_JIT:      # plain Python: the same numbers without the intrinsics
-    import numpy as _np
 
     def lanes4():
         """Four float64 of scratch (Python: an array)."""
-        return _np.empty(4)
+        return np.empty(4)
 
     def _pow2(k):  # noqa: F811 - the Python twin of the intrinsic above
         return math.ldexp(1.0, int(k))

@@ -58,6 +58,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
 )
 from madsim.physics.suspension import G, body_vertical, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
+from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
 
 V_REG = 2.0          # m/s, slip denominator floor (see module docstring)
@@ -189,7 +190,9 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
     piece, and store s, n, piece, track heading, road z, the road gradient at the CG, the surface
     under each wheel and (if count_laps) the lap bookkeeping of track spec 10.4.
-    Assumes the car moved at most a few pieces since the last call."""
+    Assumes the car moved at most a few pieces since the last call. Returns (cos, sin) of the
+    heading relative to the track, yaw - track heading (from cy, sy and the tangent of the piece
+    walk: no libm call; the suspension's next wheel loads use them)."""
     old = int(st[i, S_PIECE])
     p, q, n, ch, sh = _locate(pt, old, x, y)
     length, w = tsc[T_LENGTH], tsc[T_WIDTH]
@@ -256,6 +259,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
             st[i, S_BACK] += 1.0
     st[i, S_CURLAP] = st[i, S_TIME] - st[i, S_LAPSTART]
     st[i, S_DIST] = (st[i, S_LAPS] - (st[i, S_BACK] + 1.0)) * length + s
+    return cpsi, spsi
 
 
 @numba.njit(**_JIT)
@@ -572,6 +576,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     pt0, pt1, pt2, pt3 = st[i, S_FTRAW], st[i, S_FTRAW + 1], st[i, S_FTRAW + 2], st[i, S_FTRAW + 3]
     pn0, pn1, pn2, pn3 = st[i, S_FNRAW], st[i, S_FNRAW + 1], st[i, S_FNRAW + 2], st[i, S_FNRAW + 3]
     cy, sy = math.cos(yaw), math.sin(yaw)
+    # cos, sin of yaw - track heading as the last `track_update` formed them (same piece, same
+    # x, y: the same bits), then each sub-step's `track_update` returns the next
+    _, _, ch, sh = _piece_local(pt, int(st[i, S_PIECE]), x, y)
+    cpsi, spsi = cy * ch + sy * sh, sy * ch - cy * sh
     d_done = math.nan
     cd0 = cd1 = 1.0
     sd0 = sd1 = 0.0
@@ -636,6 +644,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         v = math.sqrt(vx * vx + vy * vy)
         vx2 = vx * vx
         down_f = down_r = wfx = wfz = wmy = 0.0
+        pitch = st[i, S_PITCH]
+        s_p, c_p = math.sin(pitch), math.cos(pitch)        # one sincos: aero and wheel loads
         if vx > 0.0:
             hm = 1.5 * (st[i, S_RIDE] + st[i, S_RIDE + 1] + st[i, S_RIDE + 2] + st[i, S_RIDE + 3])
             hm = hm * hm
@@ -643,8 +653,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
             body_down = vx2 * hm * vx / v                    # cos_a = max(0, vx/|v|)
             down_f = clift_f * body_down
             down_r = clift_r * body_down
-            climb = math.atan2(st[i, S_VZ], vx) + st[i, S_PITCH]
-            c_cl, s_cl = math.cos(climb) * vx2, math.sin(climb) * vx2
+            # climb = atan2(vz, vx) + pitch, its cos and sin without atan2: (vx, vz) / |(vx, vz)|
+            # rotated by the pitch (within a few ulp of the libm form, relative to vx^2)
+            vz = st[i, S_VZ]
+            vh = vx2 / math.sqrt(vx2 + vz * vz)
+            c_cl, s_cl = (vx * c_p - vz * s_p) * vh, (vz * c_p + vx * s_p) * vh
             sa0 = sw0 * c_cl + cw0 * s_cl                    # sin(wing angle + climb) vx^2
             sa1 = sw1 * c_cl + cw1 * s_cl
             fxw0, fxw1 = kx0 * sa0, kx1 * sa1                # < 0: drag
@@ -655,7 +668,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
         # and the road gradient in the body frame from the road under the four wheels (TORCS's
         # SimCarUpdateForces: front minus rear over the wheelbase, left minus right over the track)
-        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, tsc, yaw, dt)
+        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, tsc, s_p, cpsi, spsi, dt)
         fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
         ax_kin = ax_s - G * gbx
         ay_kin = ay_s - G * gby
@@ -814,7 +827,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         yaw = _wrap(yaw + r * dt)
         cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_TIME] += dt
-        track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, True)
+        cpsi, spsi = track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, True)
 
     st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R] = x, y, yaw, r
     st[i, S_VXG], st[i, S_VYG] = vxg, vyg

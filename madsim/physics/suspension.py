@@ -112,36 +112,43 @@ def _road_z(pt, tsc, p, q, n):
 
 
 @numba.njit(inline="always", **_JIT)
-def _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi):
-    """Road height under wheel k of car i (its static x, y from the CG along the track frame)."""
+def _cg_on_piece(st, i, pt, tsc):
+    """(piece, distance along it, m (may be past either end), lateral offset, m) of car i's CG."""
     p = int(st[i, S_PIECE])
     q = st[i, S_S] - pt[p, P_S0]
     if q < -0.5 * tsc[T_LENGTH]:
         q += tsc[T_LENGTH]
     elif q > 0.5 * tsc[T_LENGTH]:
         q -= tsc[T_LENGTH]
-    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, st[i, S_N] + xk * spsi + yk * cpsi)
+    return p, q, st[i, S_N]
 
 
 @numba.njit(inline="always", **_JIT)
-def wheel_loads(st, i, cp, pt, tsc, yaw, dt):
-    """Vertical wheel forces of car i on the body (N, wheel order) with heading `yaw` (rad), from
-    its suspensions and anti-roll bars at the body's present heave, roll and pitch
-    (docs/physics.md); stores each wheel's ride height and suspension state. Returns (f0, f1,
-    f2, f3, packer mask: bit k set when wheel k sits on its packers, the road gradient along
-    and across the body (+: rising ahead, rising to the left) from the road heights under the
-    four wheels); a tyre's load is max(f, 0)."""
+def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
+    """Road height under wheel k of car i (its static x, y from the CG (p, q, n: `_cg_on_piece`)
+    along the track frame)."""
+    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi)
+
+
+@numba.njit(inline="always", **_JIT)
+def wheel_loads(st, i, cp, pt, tsc, sp, cpsi, spsi, dt):
+    """Vertical wheel forces of car i on the body (N, wheel order), from its suspensions and
+    anti-roll bars at the body's present heave, roll and pitch (docs/physics.md); sp = sin
+    pitch, (cpsi, spsi) = (cos, sin) of yaw - track heading (the caller has them). Stores each
+    wheel's ride height and suspension state. Returns (f0, f1, f2, f3, packer mask: bit k set
+    when wheel k sits on its packers, the road gradient along and across the body (+: rising
+    ahead, rising to the left) from the road heights under the four wheels); a tyre's load is
+    max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
-    sp, sr = math.sin(st[i, S_PITCH]), math.sin(st[i, S_ROLLA])
-    dpsi = yaw - st[i, S_THEAD]
-    cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
+    sr = math.sin(st[i, S_ROLLA])
+    p, q, n = _cg_on_piece(st, i, pt, tsc)
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
     road_fr = road_lr = 0.0       # front minus rear, left minus right sums of the road heights
     for k in range(4):
-        road = _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi)
+        road = _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi)
         road_fr += road if k < 2 else -road
         road_lr += road if k % 2 == 1 else -road
         ride = zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr - road
@@ -200,12 +207,13 @@ def settle(st, cp, pt, tsc, rows):
         i = rows[j]
         dpsi = st[i, S_YAW] - st[i, S_THEAD]
         cpsi, spsi = math.cos(dpsi), math.sin(dpsi)
+        p, q, n = _cg_on_piece(st, i, pt, tsc)
         h0 = h1 = h2 = h3 = 0.0
         for k in range(4):
             bell = cp[i, C_BELL + k]
             r = cp[i, C_RIDE0 + k] - (st[i, S_FZ + k] - cp[i, C_W0 + k]) / (cp[i, C_SPRING + k] * bell * bell)
             r = min(max(r, cp[i, C_PACK + k]), cp[i, C_COURSE + k] / bell)
-            hk = r + _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi)      # body reference, global z
+            hk = r + _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi)      # body reference, global z
             if k == 0:
                 h0 = hk
             elif k == 1:
@@ -227,7 +235,7 @@ def settle(st, cp, pt, tsc, rows):
         st[i, S_ROLLR] = st[i, S_PITCHR] = 0.0
         for k in range(4):
             ride = (zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr
-                    - _wheel_road(st, i, cp, pt, tsc, k, cpsi, spsi))
+                    - _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi))
             st[i, S_RIDE + k] = ride
             st[i, S_SUSP + k] = min(max(ride, cp[i, C_PACK + k]) * cp[i, C_BELL + k], cp[i, C_COURSE + k])
             st[i, S_WVZ + k] = 0.0

@@ -27,8 +27,8 @@ _JIT = {"cache": True, "error_model": "numpy"}
 
 @numba.njit(inline="always", **_JIT)
 def wrap_angle(a):
-    """Radians wrapped into [-pi, pi)."""
-    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+    """Radians wrapped into [-pi, pi) (np.floor: a float, no round trip through an integer)."""
+    return a - 2.0 * math.pi * np.floor((a + math.pi) / (2.0 * math.pi))
 
 
 @numba.njit(inline="always", **_JIT)

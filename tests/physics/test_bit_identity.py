@@ -5,7 +5,10 @@ moved: one car, six in contact, make_vec, the env), whose shift cap holds the th
 (issue 12, TORCS's ctrl->accelCmd; every scenario that shifts moved) and whose speedZ reads the
 body's vertical velocity (the env scenarios' observations moved), with TORCS's suspension
 and the body's heave, roll and pitch (issue 12's suspension round) whose tyres run in SIMD lanes with `physics.elementary`'s atan, sincos and exp
-(issue 13: a change of rounding only, see benchmarks/RESULTS.md "The four tyres in SIMD lanes";
+(issue 13: a change of rounding only, see benchmarks/RESULTS.md "The four tyres in SIMD lanes")
+and whose sub-step takes cos/sin(yaw - track heading) from the piece walk and the wings' climb
+angle without atan2 (issue 13, rounding only: RESULTS "The car sub-step with three libm calls fewer";
+six_contact and four_wd moved, the others kept their bits;
 before that, the kernel with TORCS's spin step and averages above 3 m/s and static toe, issue 12,
 and main's commit bb41c09).
 
@@ -33,8 +36,8 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
-    "six_contact": "98604491574b2767d3bdc9f710405f6faebeb52e83dae59d16b61f048be8cb0d",
-    "four_wd": "edc9caf9273053a113cdb9e78ffff85899452d3137cea731561964eaf2711949",
+    "six_contact": "2dfa624949b41d591870a814c0501dd50b5b4b96dc8d4abb6108ac8968988863",
+    "four_wd": "0e6adecebb933fafb31d6f92840bd6ae6250a46e1406dc72f6f6ba986bb9899c",
     "vec_traffic": "11df21ccf59aad0a354cf93b3e5d9c8e2e6a652c32499799e130e32aa65048ad",
     "env_ts": "5bc844c7e1240baca25e22297e3455f3df1b93d99ea14c7a4d46af7afbdb93c7",
 }
