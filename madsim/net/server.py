@@ -317,10 +317,10 @@ class ScrServer:
             finished = self._race_over(tick, laps, cars)
             if fast is not None and countdown == 0 and not finished and not self._behind and not python_tick:
                 limit = self.max_ticks - tick if self.max_ticks is not None else 1 << 62
-                ticks, why, arg, foreign = fast.run(limit)
+                ticks, why, arg, foreign, waited_s = fast.run(limit)
                 if why == PENDING:      # the states went out, cars[:arg] answered
                     self.stats.foreign_datagrams += foreign
-                    self._collect_sync(cars[arg:], waited_s=0.0 if foreign else self._rcvtimeo_s)
+                    self._collect_sync(cars[arg:], waited_s)
                     status = race.run(DECODE, DONE, True, fast.nsub, 0)
                     ticks += 1
                 elif why == TICK:

@@ -11,7 +11,8 @@ it that the Python loop would do differently:
 - STALE: a datagram is queued before the states go out (the Python loop drains it and sends);
 - PENDING: the states went out and the cars before `order[result[1]]` answered, but that car's
   `recvfrom` failed (receive timeout, a signal: result[2] = 0) or brought a datagram from
-  another address (dropped: result[2] = 1); the Python loop waits for the rest;
+  another address (dropped: result[2] = 1); result[3]: the ns that car has been waited for
+  (since the answer before it, or the sends); the Python loop waits for the rest;
 - TICK: a tick ran and `server_tick` returned result[1] != DONE (a stage left to Python, or
   DONE | EVENT: the bookkeeping has work).
 The bytes on the wire, their order and the World's trajectory are those of the Python loop.
@@ -52,20 +53,20 @@ def _now_ns(timespec):
 def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen, out, out_len, scratch,
                result, st, snap, table, dt, fuel_on, length, half_width, max_range, max_bytes, max_damage):
     """Up to `limit` sync ticks, for at most about `budget_ns` of wall time; returns the ticks
-    run (a TICK hand-back counts its tick) and leaves in result (3,) int64 why it stopped and
-    its argument (module docstring).
+    run (a TICK hand-back counts its tick) and leaves in result (4,) int64 why it stopped and
+    its arguments (module docstring).
 
     fds (N,) the cars' socket descriptors; pollfds (M, 2) int32 `struct pollfd`s of the cars in
     the race, `order` (M,) their indices in sending order; peers (N, 2) int64 each client's
-    `sockaddr_in` as two int64s; inbox (N, B) uint8 / inlen (N,): the answers (as the Python loop fills
-    them); out (N, W) uint8 / out_len (N,): the state messages to send (with their NUL);
-    scratch (6,) int64: the sender's address (2), its length, unused, a timespec (2). The rest are
-    `server_tick`'s arguments after `nsub` (ServerTick.args)."""
+    `sockaddr_in` as two int64s; inbox (N, B) uint8 / inlen (N,): the answers (as the Python
+    loop fills them); out (N, W) uint8 / out_len (N,): the state messages to send (with their
+    NUL); scratch (6,) int64: the sender's address (2), its length, unused, a timespec (2).
+    The rest are `server_tick`'s arguments after `nsub` (ServerTick.args)."""
     m = order.shape[0]
     src = scratch[:2]
     srclen = scratch[2:3]
     timespec = scratch[4:6]
-    start = _now_ns(timespec)
+    start = now = _now_ns(timespec)
     ticks = 0
     result[0] = LIMIT
     while ticks < limit:
@@ -86,8 +87,10 @@ def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen,
                 result[0] = PENDING
                 result[1] = k
                 result[2] = 0 if n < 0 else 1
+                result[3] = _now_ns(timespec) - now     # since its wait began
                 return ticks
             inlen[i] = n
+            now = _now_ns(timespec)                     # the next car's wait begins
         status = server_tick(0, DONE, True, True, nsub, st, snap, table, dt, fuel_on, length, half_width,
                              max_range, max_bytes, max_damage)
         ticks += 1
@@ -95,7 +98,8 @@ def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen,
             result[0] = TICK
             result[1] = status
             return ticks
-        if _now_ns(timespec) - start >= budget_ns:
+        now = _now_ns(timespec)
+        if now - start >= budget_ns:
             return ticks
     return ticks
 
@@ -124,7 +128,7 @@ class SyncLoop:
         self.fds = np.array(fds, dtype=np.int32)
         self.peers = np.stack([sockaddr_in(a) for a in addrs])
         self.scratch = np.zeros(6, dtype=np.int64)
-        self.result = np.zeros(3, dtype=np.int64)
+        self.result = np.zeros(4, dtype=np.int64)
         self.set_cars(range(len(fds)))
 
     def set_cars(self, indices) -> None:
@@ -134,12 +138,12 @@ class SyncLoop:
         self.pollfds[:, 0] = self.fds[self.order]
         self.pollfds[:, 1] = POLLIN
 
-    def run(self, limit: int) -> tuple[int, int, int, int]:
+    def run(self, limit: int) -> tuple[int, int, int, int, float]:
         """Up to `limit` ticks: (ticks run, LIMIT / STALE / PENDING / TICK, its argument,
-        PENDING's foreign flag); see `sync_ticks`."""
+        PENDING's foreign flag, PENDING's wait so far in s); see `sync_ticks`."""
         race = self.race
         ticks = sync_ticks(limit, self.budget_ns, self.nsub, self.fds, self.pollfds, self.peers, self.order,
                            race.inbox, race.inlen, race.out, race.out_len, self.scratch, self.result,
                            *race.args)
-        why, arg, flag = self.result.tolist()
-        return ticks, why, arg, flag
+        why, arg, flag, waited_ns = self.result.tolist()
+        return ticks, why, arg, flag, waited_ns * 1e-9
