@@ -38,7 +38,7 @@ from madsim.facts import TICK_S
 from madsim.net import protocol as P
 from madsim.physics.schedule import make_clock
 from madsim.net.server_tick import DECODE, DONE, SENSE, STEP, ServerTick
-from madsim.net.sync_loop import LIMIT, PENDING, STALE, TICK, SyncLoop
+from madsim.net.sync_loop import LIMIT, PENDING, STALE, SUPPORTED, TICK, SyncLoop
 from madsim.physics.sensors import SensorFrame, SensorSuite
 
 MODES = ("sync", "timeout", "realtime")
@@ -304,7 +304,7 @@ class ScrServer:
         # the usual sync ticks without Python in between (`sync_loop`): its hand-backs are
         # finished here exactly as the Python loop below would do them
         fast = None
-        if self.compiled_loop and self.mode == "sync" and writer is None and race.compiled \
+        if self.compiled_loop and SUPPORTED and self.mode == "sync" and writer is None and race.compiled \
                 and not self.noisy and self.clock.name == "fixed":
             fast = SyncLoop([c.sock.fileno() for c in self.cars], [c.addr for c in self.cars], race,
                             self.clock.substeps())
@@ -611,7 +611,8 @@ def warm_up(world, noisy: bool = False) -> None:
         inbox[:, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
         inlen[:] = len(msg)
         race.run(DECODE, DONE, stepping=True, nsub=10, countdown=0)
-    SyncLoop([-1] * n, [("127.0.0.1", 0)] * n, race, 10).run(0)   # the sync loop, loaded only
+    if SUPPORTED:
+        SyncLoop([-1] * n, [("127.0.0.1", 0)] * n, race, 10).run(0)   # the sync loop, loaded only
     world.step(race.u)          # and the in-process doors' own path, a focus reading due
     P.encode_sensor_rows(SensorSuite(world, noisy=noisy, rng=np.random.default_rng(0)).frame().flat)
     P.decode_controls_into(answers[0], np.zeros(8))

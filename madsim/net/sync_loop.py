@@ -17,11 +17,14 @@ it that the Python loop would do differently:
   DONE | EVENT: the bookkeeping has work).
 The bytes on the wire, their order and the World's trajectory are those of the Python loop.
 The kernel runs without the GIL (other threads, e.g. a client in the same process, go on).
+Linux only (`SUPPORTED`): the `sockaddr_in` layout and the clock id are Linux's; elsewhere the
+server keeps the Python loop.
 """
 
 from __future__ import annotations
 
 import socket
+import sys
 
 import numba
 import numpy as np
@@ -30,6 +33,7 @@ from numba.core import types
 from madsim.net.server_tick import DONE, server_tick
 
 LIMIT, STALE, PENDING, TICK = 0, 1, 2, 3
+SUPPORTED = sys.platform.startswith("linux")
 SOCKADDR_IN_BYTES = 16
 CLOCK_MONOTONIC = 1          # Linux's clockid_t, as time.monotonic uses
 POLLIN = 1
