@@ -3,7 +3,7 @@
 Run: python benchmarks/bench_server.py [--ticks 20000] [--track madsim-oval] [--case rest]
                                        [--profile FILE]
      python benchmarks/bench_server.py --tools ../shared/tools [--reps 3] [--ticks 20000]
-                                       [--baseline OTHER_CHECKOUT]
+                                       [--baseline OTHER_CHECKOUT] [--pin]
 
 With --tools DIR: the issue-13 acceptance procedure instead. DIR holds `scr_speed_probe.py`
 (the minimal client; `--full` parses every sensor first) and `scr_echo_server.py` (a
@@ -11,7 +11,10 @@ do-nothing Python server). Each repetition runs, back to back on one port, echo 
 serve` (sync, g-track-1, car1-trb1, `--countdown 0`), with the minimal client then the full
 one; every figure is over the whole run from the first tick after identification (start-up
 stalls included). Prints each run, then per server and client the median ticks/s (and
-range), the worst longest wait, and madsim's median as a share of echo's. `--baseline DIR`
+range), the worst longest wait, the server process's CPU time per tick over the race (user +
+system from /proc, from its "waiting for" line to the probe's end: a component figure, which
+moves far less than the wall rate on a shared machine), and madsim's median as a share of
+echo's. `--baseline DIR`
 adds a third server to each repetition: `madsim serve` of another checkout (run from its own
 folder with PYTHONPATH=DIR), e.g. main before a change, so both are measured in one sitting.
 
@@ -147,10 +150,13 @@ def run(ticks: int, track: str, control: bytes, profile: str | None) -> tuple[fl
             server.wait()
 
 
-def probe_runs(tools: str, reps: int, ticks: int, baseline: str | None = None) -> None:
+def probe_runs(tools: str, reps: int, ticks: int, baseline: str | None = None, pin: bool = False) -> None:
     """The acceptance procedure of issue 13 (see the module docstring): prints one line per run
     and a summary (median and range). `baseline`: another checkout whose `madsim serve` runs
-    back to back with this one's (e.g. main before a change)."""
+    back to back with this one's (e.g. main before a change). `pin`: the client on CPU 0 and
+    every server on CPU 1 (`taskset`), so each round trip crosses cores, whatever the
+    scheduler would have done."""
+    server_cpu, client_cpu = (["taskset", "-c", "1"], ["taskset", "-c", "0"]) if pin else ([], [])
     probe, echo = os.path.join(tools, "scr_speed_probe.py"), os.path.join(tools, "scr_echo_server.py")
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     serve = [sys.executable, "-m", "madsim.cli", "serve", "--track", "g-track-1", "--cars", "car1-trb1",
@@ -162,30 +168,43 @@ def probe_runs(tools: str, reps: int, ticks: int, baseline: str | None = None) -
             for server_name, checkout in servers:
                 port = free_udp_port()
                 if checkout is None:
-                    cmd, env, cwd = [sys.executable, echo, str(port)], None, None
+                    cmd, env, cwd = server_cpu + [sys.executable, echo, str(port)], None, None
                 else:    # that checkout's madsim, from its own folder
-                    cmd, env, cwd = serve + [str(port)], dict(os.environ, PYTHONPATH=checkout), checkout
-                server = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                          env=env, cwd=cwd)
+                    cmd, env, cwd = server_cpu + serve + [str(port)], dict(os.environ, PYTHONPATH=checkout), checkout
+                server = subprocess.Popen(cmd, stdout=subprocess.PIPE if checkout else subprocess.DEVNULL,
+                                          stderr=subprocess.DEVNULL, env=env, cwd=cwd, text=True)
                 try:
-                    out = subprocess.run([sys.executable, probe, str(ticks), str(port)]
+                    # the server's CPU over the race alone: from its "waiting for" line (start-up
+                    # and kernel loading done) to the end of the probe
+                    if checkout:
+                        for line in server.stdout:
+                            if "waiting for" in line:
+                                break
+                    else:
+                        time.sleep(0.5)
+                    cpu0 = cpu_seconds(server.pid)
+                    out = subprocess.run(client_cpu + [sys.executable, probe, str(ticks), str(port)]
                                          + (["--full"] if client == "full" else []),
                                          capture_output=True, text=True, timeout=600).stdout
+                    cpu_us = 1e6 * (cpu_seconds(server.pid) - cpu0) / ticks
                 finally:
                     server.kill()
                     server.wait()
                 rate = float(out.split("ticks/s=")[1].split()[0])
                 wait = float(out.split("longest_wait=")[1].split()[0])
-                results.setdefault((server_name, client), []).append((rate, wait))
-                print(f"{server_name:8} {client:7} {out.strip()}", flush=True)
+                results.setdefault((server_name, client), []).append((rate, wait, cpu_us))
+                print(f"{server_name:8} {client:7} {out.strip()} server_cpu={cpu_us:.1f}us/tick", flush=True)
     for client in ("minimal", "full"):
         med = {}
         for server_name, _ in servers:
-            rates = sorted(r for r, _ in results[(server_name, client)])
+            runs = results[(server_name, client)]
+            rates = sorted(r for r, _, _ in runs)
+            cpus = sorted(c for _, _, c in runs)
             med[server_name] = rates[len(rates) // 2]
             print(f"{server_name:8} {client:7} median {med[server_name]:,.0f} ticks/s (range "
                   f"{rates[0]:,.0f}-{rates[-1]:,.0f}), longest wait "
-                  f"{max(w for _, w in results[(server_name, client)]) * 1000:.0f} ms over {len(rates)} runs")
+                  f"{max(w for _, w, _ in runs) * 1000:.0f} ms over {len(rates)} runs; server CPU "
+                  f"{cpus[len(cpus) // 2]:.1f} us per tick (range {cpus[0]:.1f}-{cpus[-1]:.1f})")
         for server_name, _ in servers[1:]:
             print(f"{server_name} / echo, {client} client: {med[server_name] / med['echo']:.0%}")
 
@@ -197,6 +216,8 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--baseline", default=None, help="with --tools: another checkout whose "
                     "`madsim serve` runs back to back with this one's")
+    ap.add_argument("--pin", action="store_true", help="with --tools: client on CPU 0, servers on "
+                    "CPU 1 (taskset): every round trip crosses cores")
     ap.add_argument("--ticks", type=int, default=20_000)
     ap.add_argument("--track", default="madsim-oval")
     ap.add_argument("--case", choices=sorted(CONTROLS), action="append",
@@ -205,7 +226,7 @@ def main() -> None:
                     "(one case only)")
     args = ap.parse_args()
     if args.tools:
-        probe_runs(args.tools, args.reps, args.ticks, args.baseline)
+        probe_runs(args.tools, args.reps, args.ticks, args.baseline, args.pin)
         return
     cases = args.case or ["echo", "rest", "wall"]
     if args.profile and len(cases) != 1:

@@ -28,6 +28,7 @@ TIE_MARGIN = 1e-7          # |fraction - 0.5| below this: the exact path decides
 LOG10_2 = 0.30102999566398120
 MAX_VALUE_CHARS = 16       # the longest %g text of a float32 ("-1.23457e-05" is 12) or a C int
 
+TEN = np.uint64(10)
 _POW10 = np.array([10.0 ** k for k in range(23)])   # exact doubles
 
 
@@ -52,22 +53,24 @@ def _put_int(out, i, pos, q):
     if q == 0:
         out[i, pos] = 48
         return pos + 1
+    # unsigned: a division by the constant 10 is then a multiplication (a signed one with
+    # Python's floor semantics stays a hardware division, ~10x slower)
+    u = np.uint64(q)
     n = 0
-    t = q
+    t = u
     while t > 0:
         n += 1
-        t //= 10
+        t //= TEN
     for k in range(n - 1, -1, -1):
-        out[i, pos + k] = 48 + q % 10
-        q //= 10
+        out[i, pos + k] = 48 + u % TEN
+        u //= TEN
     return pos + n
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _put_g(out, i, pos, f):
     """C `printf("%g", f)` of a finite double `f` at out[i, pos:]; returns the new end, or -1 when
-    the 6-digit rounding is too close to a tie to decide in double arithmetic. The last 6
-    bytes of row i of `out` are scratch space."""
+    the 6-digit rounding is too close to a tie to decide in double arithmetic."""
     if f < 0.0 or (f == 0.0 and math.copysign(1.0, f) < 0.0):
         out[i, pos] = 45   # '-'
         pos += 1
@@ -96,44 +99,36 @@ def _put_g(out, i, pos, f):
             e -= 1
         else:
             break
-    # the 6 digits go to the scratch bytes at the end of `out` (constant divisions only)
-    scratch = out.shape[1] - 6
-    for k in range(5, -1, -1):
-        out[i, scratch + k] = 48 + q % 10
-        q //= 10
-    last = 5                  # %g drops trailing zeros of the fraction
-    while last > 0 and out[i, scratch + last] == 48:
+    # %g drops the trailing zeros of the fraction (not those of an integer part)
+    u = np.uint64(q)          # unsigned: see _put_int
+    fixed = -4 <= e < 6
+    last = 5                  # the digits kept are 0..last
+    keep = e if fixed and e > 0 else 0
+    while last > keep and u % TEN == 0:
+        u //= TEN
         last -= 1
-    if -4 <= e < 6:
-        if e >= 0:
-            for k in range(e + 1):
-                out[i, pos] = out[i, scratch + k]
-                pos += 1
-            if last > e:
-                out[i, pos] = 46   # '.'
-                pos += 1
-                for k in range(e + 1, last + 1):
-                    out[i, pos] = out[i, scratch + k]
-                    pos += 1
-        else:
+    dot = e if fixed else 0   # the point follows digit `dot` (if any digit follows)
+    if fixed and e < 0:
+        out[i, pos] = 48      # "0.000" then every digit
+        out[i, pos + 1] = 46
+        pos += 2
+        for _ in range(-e - 1):
             out[i, pos] = 48
-            out[i, pos + 1] = 46
-            pos += 2
-            for _ in range(-e - 1):
-                out[i, pos] = 48
-                pos += 1
-            for k in range(last + 1):
-                out[i, pos] = out[i, scratch + k]
-                pos += 1
-        return pos
-    out[i, pos] = out[i, scratch]
-    pos += 1
-    if last > 0:
-        out[i, pos] = 46
-        pos += 1
-        for k in range(1, last + 1):
-            out[i, pos] = out[i, scratch + k]
             pos += 1
+        dot = 6
+    point = last > dot
+    end = pos + last + (2 if point else 1)
+    p = end - 1               # the digits from the last, straight to their places
+    for k in range(last, -1, -1):
+        out[i, p] = 48 + u % TEN
+        u //= TEN
+        p -= 1
+        if point and k == dot + 1:
+            out[i, p] = 46
+            p -= 1
+    if fixed:
+        return end
+    pos = end
     out[i, pos] = 101   # 'e'
     out[i, pos + 1] = 45 if e < 0 else 43
     pos += 2
@@ -158,6 +153,7 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
         pos = np.int64(0)      # not the literal 0, for which numba would compile _put_g again
         start = 0
         ok = True
+        prev_start = prev_end = -1     # the text of the value before, at out[i, prev_start:prev_end]
         for k in range(n_values + 1):
             for j in range(start, lit_end[k]):
                 out[i, pos] = lit[j]
@@ -166,6 +162,20 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
             if k == n_values:
                 break
             v = rows[i, k]
+            # the same value as the one before (same kind, same sign of a zero): the same text,
+            # copied (the rangefinders and opponents are mostly runs of -1 or 200)
+            if prev_end >= 0 and v == rows[i, k - 1] and is_int[k] == is_int[k - 1] and \
+                    (v != 0.0 or math.copysign(1.0, v) == math.copysign(1.0, rows[i, k - 1])):
+                value_start = pos
+                for j in range(prev_start, prev_end):
+                    out[i, pos] = out[i, j]
+                    pos += 1
+                prev_start, prev_end = value_start, pos
+                if pos > max_bytes:
+                    ok = False
+                    break
+                continue
+            value_start = pos
             if is_int[k]:
                 if not abs(v) < 2147483648.0:
                     ok = False
@@ -195,6 +205,7 @@ def encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length):
             if pos > max_bytes:
                 ok = False
                 break
+            prev_start, prev_end = value_start, pos
         if ok and pos <= max_bytes:
             out[i, pos] = 0
             length[i] = pos + 1

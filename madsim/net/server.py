@@ -38,6 +38,7 @@ from madsim.facts import TICK_S
 from madsim.net import protocol as P
 from madsim.physics.schedule import make_clock
 from madsim.net.server_tick import DECODE, DONE, SENSE, STEP, ServerTick
+from madsim.net.sync_loop import LIMIT, PENDING, STALE, SUPPORTED, TICK, SyncLoop
 from madsim.physics.sensors import SensorFrame, SensorSuite
 
 MODES = ("sync", "timeout", "realtime")
@@ -91,7 +92,9 @@ class ScrServer:
     (optional, one per car) replaces the default port+i, e.g. for a TORCS race file whose
     scr_server indices have gaps. `tick_schedule`: "fixed" (every tick 0.02 s, the default) or
     "torcs" (TORCS's own driver calls, 0.02 or 0.022 s apart, `madsim.physics.schedule`).
-    Sensor noise (`noisy`) draws from default_rng([seed, 1]).
+    Sensor noise (`noisy`) draws from default_rng([seed, 1]). `compiled_loop` (default True):
+    run the usual sync ticks in `madsim.net.sync_loop` (False: every tick through Python, the
+    same bytes; for tests and comparisons).
     """
 
     def __init__(self, make_world: Callable[[int], object], n_clients: int, *, host: str = "127.0.0.1",
@@ -100,7 +103,8 @@ class ScrServer:
                  max_ticks: int | None = None, countdown_ticks: int = COUNTDOWN_TICKS,
                  start_timeout_s: float | None = None, client_deadline_s: float = 5.0,
                  log: Callable[[str], None] | None = None, log_csv: str | os.PathLike | None = None,
-                 pid: int | None = None, ports: list[int] | None = None, tick_schedule: str = "fixed"):
+                 pid: int | None = None, ports: list[int] | None = None, tick_schedule: str = "fixed",
+                 compiled_loop: bool = True):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if identified_reply not in ("plain", "pid"):
@@ -124,6 +128,8 @@ class ScrServer:
         self.clock = make_clock(tick_schedule)   # "fixed" 20 ms ticks or TORCS's 20/22 ms calls
         self.start_timeout_s = start_timeout_s
         self.client_deadline_s = float(client_deadline_s)
+        self._rcvtimeo_s = min(self.client_deadline_s, STOP_POLL_S)   # one blocking read's longest wait
+        self.compiled_loop = bool(compiled_loop)
         self.log = log or (lambda msg: None)
         self.log_csv = log_csv
         self.stats = ServerStats()
@@ -153,8 +159,7 @@ class ScrServer:
                                   f"{getattr(exc, 'strerror', None) or exc}") from None
             # blocking reads are ended by the kernel (one recvfrom per answer, no select) after
             # STOP_POLL_S at most, so a stop() is seen in time; every other read passes MSG_DONTWAIT
-            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO,
-                         _timeval(min(self.client_deadline_s, STOP_POLL_S)))
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(self._rcvtimeo_s))
             self.cars.append(_Car(i, s, port, self._controls[i], self._inbox[i]))
             self._poll.register(s, select.POLLIN)
 
@@ -296,37 +301,63 @@ class ScrServer:
         self.clock.reset()
         drain = self.mode != "timeout"      # TORCS's timeout mode reads one datagram per tick
         race.run(SENSE, DONE, False, 0, countdown)
+        # the usual sync ticks without Python in between (`sync_loop`): its hand-backs are
+        # finished here exactly as the Python loop below would do them
+        fast = None
+        if self.compiled_loop and SUPPORTED and self.mode == "sync" and writer is None and race.compiled \
+                and not self.noisy and self.clock.name == "fixed":
+            fast = SyncLoop([c.sock.fileno() for c in self.cars], [c.addr for c in self.cars], race,
+                            self.clock.substeps())
+        python_tick = False                 # the next tick goes through the Python loop
         while True:
             if self._stop:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
                 return "stopped"
             finished = self._race_over(tick, laps, cars)
-            # stale datagrams (sync, realtime): one poll says whether any socket holds one
-            late = self._take_late(cars) if drain and not finished and self._poll.poll(0) else {}
-            for c in cars:
-                self._send(c, race.message(c.index))
-            if finished:
-                for c in self.cars:
-                    self._send(c, P.SHUTDOWN_MESSAGE)
-                self._final_table(world, tick, "race over")
-                return "end"
-            self._collect(cars, late)
-            stepping = countdown == 0
-            label = tick if stepping else -countdown
-            if not stepping:
-                countdown -= 1
-            nsub = self.clock.substeps() if stepping else 0
-            if writer is None:
-                status = race.run(DECODE, DONE, stepping, nsub, countdown)
-            else:      # the row of the state sent and the controls applied, before the step
-                race.run(DECODE, STEP, stepping, nsub, countdown)
-                self._write_csv(writer, label, world, SensorFrame(race.flat, race.cars), self._controls)
-                status = race.run(STEP, DONE, stepping, nsub, countdown)
-            if stepping:
-                self.stats.ticks += 1
-                tick += 1
+            if fast is not None and countdown == 0 and not finished and not self._behind and not python_tick:
+                limit = self.max_ticks - tick if self.max_ticks is not None else 1 << 62
+                ticks, why, arg, foreign, waited_s = fast.run(limit)
+                if why == PENDING:      # the states went out, cars[:arg] answered
+                    self.stats.foreign_datagrams += foreign
+                    self._collect_sync(cars[arg:], waited_s)
+                    status = race.run(DECODE, DONE, True, fast.nsub, 0)
+                    ticks += 1
+                elif why == TICK:
+                    status = race.resume(arg, DONE, True, fast.nsub, 0) if arg < DONE else arg
+                self.stats.ticks += ticks
+                tick += ticks
                 self._race_ticks = tick
+                if why in (LIMIT, STALE):
+                    python_tick = why == STALE
+                    continue
+            else:
+                python_tick = False
+                # stale datagrams (sync, realtime): one poll says whether any socket holds one
+                late = self._take_late(cars) if drain and not finished and self._poll.poll(0) else {}
+                for c in cars:
+                    self._send(c, race.message(c.index))
+                if finished:
+                    for c in self.cars:
+                        self._send(c, P.SHUTDOWN_MESSAGE)
+                    self._final_table(world, tick, "race over")
+                    return "end"
+                self._collect(cars, late)
+                stepping = countdown == 0
+                label = tick if stepping else -countdown
+                if not stepping:
+                    countdown -= 1
+                nsub = self.clock.substeps() if stepping else 0
+                if writer is None:
+                    status = race.run(DECODE, DONE, stepping, nsub, countdown)
+                else:      # the row of the state sent and the controls applied, before the step
+                    race.run(DECODE, STEP, stepping, nsub, countdown)
+                    self._write_csv(writer, label, world, SensorFrame(race.flat, race.cars), self._controls)
+                    status = race.run(STEP, DONE, stepping, nsub, countdown)
+                if stepping:
+                    self.stats.ticks += 1
+                    tick += 1
+                    self._race_ticks = tick
             if status == DONE:
                 continue
             # the bookkeeping's turn: malformed answers, laps, cars out, a restart request
@@ -340,6 +371,8 @@ class ScrServer:
             damage = world.column("damage").tolist()
             if max(damage) > MAX_DAMAGE:
                 cars = [c for c in cars if damage[c.index] <= MAX_DAMAGE]
+                if fast is not None:
+                    fast.set_cars(c.index for c in cars)
                 for c in self.cars:
                     if damage[c.index] > MAX_DAMAGE:
                         self._inlen[c.index] = -1     # out of the race: no answer read again
@@ -422,13 +455,15 @@ class ScrServer:
                 time.sleep(rest)
         self._apply(cars, got)
 
-    def _collect_sync(self, cars: list[_Car]) -> None:
+    def _collect_sync(self, cars: list[_Car], waited_s: float = 0.0) -> None:
         """Sync mode, every client answering in time so far (the usual tick): one blocking
         read per car into its inbox row, which the kernel ends after `client_deadline_s`
-        (SO_RCVTIMEO); a car silent that long goes to timeout behaviour."""
+        (SO_RCVTIMEO); a car silent that long goes to timeout behaviour. `waited_s`: how long
+        the first car has been waited for already (by the compiled loop)."""
         inlen = self._inlen
         for c in cars:
-            n = inlen[c.index] = -1 if self._stop else self._wait_for_client(c)
+            n = inlen[c.index] = -1 if self._stop else self._wait_for_client(c, waited_s)
+            waited_s = 0.0
             if n < 0:
                 self.stats.timeouts += 1
                 if not self._stop:
@@ -441,12 +476,15 @@ class ScrServer:
                  f"in sync mode; reusing its last controls, waiting {self.timeout_s * 1000:g} ms "
                  f"per tick until it answers again")
 
-    def _wait_for_client(self, c: _Car) -> int:
-        """Receive c's client's next datagram into c.inbox, waiting up to `client_deadline_s`;
+    def _wait_for_client(self, c: _Car, waited_s: float = 0.0) -> int:
+        """Receive c's client's next datagram into c.inbox, waiting up to `client_deadline_s`
+        (less `waited_s`, the time it was waited for already);
         returns its length, or -1 on silence or a stop request (the socket's receive timeout is
         at most STOP_POLL_S so stop() is seen in time); foreign datagrams are counted and dropped
         without extending the wait."""
-        end = time.monotonic() + self.client_deadline_s
+        end = time.monotonic() + self.client_deadline_s - waited_s
+        if waited_s >= self.client_deadline_s:
+            return -1
         while not self._stop:
             try:
                 n, addr = c.sock.recvfrom_into(c.inbox)
@@ -573,6 +611,8 @@ def warm_up(world, noisy: bool = False) -> None:
         inbox[:, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
         inlen[:] = len(msg)
         race.run(DECODE, DONE, stepping=True, nsub=10, countdown=0)
+    if SUPPORTED:
+        SyncLoop([-1] * n, [("127.0.0.1", 0)] * n, race, 10).run(0)   # the sync loop, loaded only
     world.step(race.u)          # and the in-process doors' own path, a focus reading due
     P.encode_sensor_rows(SensorSuite(world, noisy=noisy, rng=np.random.default_rng(0)).frame().flat)
     P.decode_controls_into(answers[0], np.zeros(8))

@@ -245,12 +245,18 @@ class ServerTick:
         DONE | EVENT when the bookkeeping has work (always after a stage done in Python).
         stepping: advance the World (False in the countdown); countdown: the ticks still to
         wait before the start, shown in the state being built (curLapTime < 0, gear 0, no focus)."""
-        plain = countdown == 0 and not self.suite.noisy
         status = first
         if self.compiled:           # the usual tick: one call, nothing left
-            status = server_tick(first, stop, stepping, plain, nsub, *self.args)
+            status = server_tick(first, stop, stepping, countdown == 0 and not self.suite.noisy, nsub,
+                                 *self.args)
             if status >= stop:
                 return status
+        return self.resume(status, stop, stepping, nsub, countdown)
+
+    def resume(self, status: int, stop: int, stepping: bool, nsub: int, countdown: int) -> int:
+        """Go on from stage `status`, which the compiled call left to Python (its inputs
+        complete), to `stop`; returns as `run`."""
+        plain = countdown == 0 and not self.suite.noisy
         python = False
         while status < stop:
             self._python_stage(status, stepping, nsub, countdown)

@@ -258,6 +258,26 @@ def test_compiled_encoder_leaves_near_ties_and_non_finite_rows_to_the_exact_path
     assert messages[2].startswith(b"(angle inf)")
 
 
+def test_compiled_encoder_copies_a_repeated_value_only_where_its_text_is_the_same():
+    """A value equal to the one before is copied from its text: not across an int field (196.7
+    then int 196.7 prints "196"), nor between 0 and -0."""
+    from madsim.net import codec_kernels as K
+
+    floats = np.array([196.7, 196.7, -0.0, 0.0, 0.0, -0.0, -0.0] + [200.0] * 30 + [1.5e-5] * 3
+                      + [123456.0, 123456.0, 0.000123, 0.000123] + [-1.0] * 32, dtype=np.float32)
+    row, expected = _rows_oracle(floats, (1, 1, 196))
+    assert SENSOR_FIELDS[2].name == "damage" and SENSOR_FIELDS[2].kind == "int"
+    row[2] = row[1]                                  # damage 196.7: an int field prints "196"
+    assert b"(curLapTime 196.7)(damage 196)(distFromStart -0)(distRaced 0)(fuel 0)(gear 1)" \
+           b"(lastLapTime -0)" in expected
+    enc = P.STATE_ENCODER
+    out = np.zeros((1, enc._width), dtype=np.uint8)
+    length = np.zeros(1, dtype=np.int64)
+    K.encode_rows(row[None, :].astype(np.float64), enc._is_int, enc._lit, enc._lit_end, enc.max_bytes,
+                  out, length)
+    assert out[0, :length[0]].tobytes() == expected     # the compiled path itself, no fallback
+
+
 @SETTINGS
 @given(st.integers(0, 2**32 - 1))
 def test_fast_and_checked_paths_agree(seed):

@@ -412,6 +412,52 @@ def test_sync_mode_drops_an_extra_reply_so_later_commands_stay_on_their_tick(ser
     assert stats_line(server)["drained"] == 1
 
 
+def _two_clients_with_upsets(server: Server, ticks: int, upsets: bool) -> list[bytes]:
+    """Car 0's states over a sync race of two raw clients answering a fixed control sequence;
+    with `upsets`: car 0 sends an extra answer at tick 3 (queued while car 1 is waited for),
+    car 1 answers tick 5 only after 0.3 s (longer than one receive timeout, shorter than the
+    client deadline) and a stranger writes to car 1's port at tick 7."""
+    raw = [RawClient(server.port), RawClient(server.port + 1)]
+    stranger = RawClient(server.port + 1)
+    got = []
+    try:
+        for r in raw:
+            assert r.identify() == b"***identified***\0"
+        for k in range(ticks):
+            got.append(raw[0].recv())
+            raw[1].recv()
+            raw[0].send(controls(steer=0.03 * k, accel=1.0))
+            if upsets and k == 3:
+                raw[0].send(controls(steer=-0.9, accel=1.0))
+                time.sleep(0.05)
+            if upsets and k == 5:
+                time.sleep(0.3)
+            if upsets and k == 7:
+                stranger.send(controls(steer=0.9))
+                time.sleep(0.05)
+            raw[1].send(controls(steer=-0.02, accel=0.5))
+        got.append(raw[0].recv())
+        assert raw[0].recv() == P.SHUTDOWN_MESSAGE
+    finally:
+        for r in raw + [stranger]:
+            r.close()
+    assert server.wait_exit() == 0
+    return got
+
+
+def test_sync_ticks_of_the_compiled_loop_hand_extras_pauses_and_strangers_to_python_unchanged(serve):
+    """The usual sync ticks run in the compiled loop (`sync_loop`, no --log-csv); a stale
+    datagram, a client slower than one receive timeout and a foreign datagram make it hand
+    the tick to the Python loop, and the race's bytes are those of an undisturbed race."""
+    args = ("--track", TRACK, "--countdown", "0", "--max-ticks", "12", "--client-deadline", "2")
+    calm = _two_clients_with_upsets(serve(*args, clients=2), 12, upsets=False)
+    server = serve(*args, clients=2)
+    upset = _two_clients_with_upsets(server, 12, upsets=True)
+    assert upset == calm and len(calm) == 13
+    assert len(set(calm)) == 13 and P.decode_sensors(calm[-1])["speedX"] > 0.0   # the car moved
+    assert stats_line(server) == {"malformed": 0, "foreign": 1, "ignored": 0, "drained": 1, "reused": 0}
+
+
 def test_sync_mode_honours_a_restart_request_sent_as_an_extra_datagram(serve):
     server = serve("--track", TRACK, "--countdown", "0", "--max-ticks", "3")
     raw = RawClient(server.port)
