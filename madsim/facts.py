@@ -1,4 +1,5 @@
-"""Facts several layers share, stated once: the tick, the SCR sensor fields, rangefinder angles.
+"""Facts several layers share, stated once: the tick, the SCR sensor fields, rangefinder angles,
+the SCR sample driver's gear rule.
 
 The physics (`World`), the sensors (`SensorFrame`), the wire codec (`madsim.net.protocol`) and
 the generated docs (`madsim.docs`) all read these; none of them restates them. Imports nothing.
@@ -77,3 +78,25 @@ SCR_CPP_CLIENT_ANGLES_DEG = (-90.0, -75.0, -60.0, -45.0, -30.0, -20.0, -15.0, -1
 SNAKEOIL_ANGLES_DEG = (-45.0, -19.0, -12.0, -7.0, -4.0, -2.5, -1.7, -1.0, -0.5, 0.0,
                        0.5, 1.0, 1.7, 2.5, 4.0, 7.0, 12.0, 19.0, 45.0)
 """What gym_torcs' and MADRaS' snakeoil3 client sends."""
+
+
+# --- the SCR championship sample driver's gearbox (SimpleDriver) ------------------------------
+
+SAMPLE_GEAR_UP_RPM = (5000.0, 6000.0, 6000.0, 6500.0, 7000.0)
+"""SCR `rpm` (engine rad/s x 10) at or above which gears 1..5 shift up."""
+SAMPLE_GEAR_DOWN_RPM = (2500.0, 3000.0, 3000.0, 3500.0, 3500.0)
+"""SCR `rpm` at or below which gears 2..6 shift down."""
+
+
+def rpm_gear(gear: int, rpm: float) -> int:
+    """The SCR sample driver's rule: next gear from the current gear and SCR `rpm`. Neutral or
+    reverse go to first; shift up at 5000/6000/6000/6500/7000 from gears 1-5, down at
+    2500/3000/3000/3500/3500 from gears 2-6."""
+    gear = int(gear)
+    if gear < 1:
+        return 1
+    if gear < 6 and rpm >= SAMPLE_GEAR_UP_RPM[gear - 1]:
+        return gear + 1
+    if gear > 1 and rpm <= SAMPLE_GEAR_DOWN_RPM[gear - 2]:
+        return gear - 1
+    return gear

@@ -26,6 +26,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numba import njit
 
+from madsim.facts import rpm_gear
 from madsim.physics.sensors import O_ANGLE, O_SX, O_TPOS
 
 __all__ = [
@@ -47,10 +48,6 @@ SPEED_UNIT_KMH = 50.0                        # gym_torcs scales speeds as km/h /
 
 # snakeoil's automatic gearbox (spec 6.1): speedX km/h above which each gear 2..6 is used
 SPEED_GEAR_KMH = (50.0, 80.0, 110.0, 140.0, 170.0)
-# The SCR championship sample driver (SimpleDriver): SCR rpm at which gears 1..5 shift up,
-# and at which gears 2..6 shift down.
-_GEAR_UP_RPM = (5000.0, 6000.0, 6000.0, 6500.0, 7000.0)
-_GEAR_DOWN_RPM = (2500.0, 3000.0, 3000.0, 3500.0, 3500.0)
 
 
 @njit(cache=True)
@@ -61,20 +58,6 @@ def speed_gear(speed_kmh: float) -> int:
     for threshold in SPEED_GEAR_KMH:
         if speed_kmh > threshold:
             gear += 1
-    return gear
-
-
-def rpm_gear(gear: int, rpm: float) -> int:
-    """The SCR sample driver's rule: next gear from the current gear and SCR `rpm` (engine
-    rad/s x 10). Neutral or reverse go to first; shift up at 5000/6000/6000/6500/7000 from gears
-    1-5, down at 2500/3000/3000/3500/3500 from gears 2-6."""
-    gear = int(gear)
-    if gear < 1:
-        return 1
-    if gear < 6 and rpm >= _GEAR_UP_RPM[gear - 1]:
-        return gear + 1
-    if gear > 1 and rpm <= _GEAR_DOWN_RPM[gear - 2]:
-        return gear - 1
     return gear
 
 

@@ -18,6 +18,7 @@ import socket
 import time
 from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
+from madsim.facts import rpm_gear
 from madsim.net.protocol import (
     RESTART,
     SHUTDOWN,
@@ -208,8 +209,6 @@ class ScrClient:
 
 
 STEER_LOCK_RAD = 0.366519  # car1-trb1, the C++ SimpleDriver's value (§9)
-_GEAR_UP_RPM_X10 = (5000.0, 6000.0, 6000.0, 6500.0, 7000.0)  # C++ SimpleDriver, gears 1-5
-_GEAR_DOWN_RPM_X10 = 3000.0
 
 
 def simple_driver(state: Mapping[str, Any], target_speed_kmh: float = 100.0) -> dict[str, Any]:
@@ -220,7 +219,7 @@ def simple_driver(state: Mapping[str, Any], target_speed_kmh: float = 100.0) -> 
     drops before bends: the longest of the three forward rangefinders gives the free road d
     ahead and the target is capped at sqrt(2 a d) with a = 5 m/s^2 (a safe braking rate), but
     not below 30 km/h. Throttle is proportional to the speed error, brake above target + 5 km/h;
-    up-shift at the C++ SimpleDriver's rpm thresholds, down-shift below 3000 (rpm = rad/s x 10).
+    gears by the SCR sample driver's rpm rule (`madsim.facts.rpm_gear`; rpm = rad/s x 10).
     """
     angle = float(state["angle"])
     track_pos = float(state["trackPos"])
@@ -236,11 +235,5 @@ def simple_driver(state: Mapping[str, Any], target_speed_kmh: float = 100.0) -> 
     error = target_speed_kmh - speed
     accel = max(0.0, min(1.0, error / 20.0 + 0.2)) if error > 0 else 0.0
     brake = max(0.0, min(1.0, (-error - 5.0) / 20.0)) if error < -5.0 else 0.0
-    if gear < 1:
-        gear = 1
-    elif gear < 6 and rpm > _GEAR_UP_RPM_X10[gear - 1]:
-        gear += 1
-    elif gear > 1 and rpm < _GEAR_DOWN_RPM_X10:
-        gear -= 1
-    return {"accel": accel, "brake": brake, "gear": gear, "steer": steer, "clutch": 0.0,
+    return {"accel": accel, "brake": brake, "gear": rpm_gear(gear, rpm), "steer": steer, "clutch": 0.0,
             "focus": 0, "meta": 0}

@@ -253,6 +253,11 @@ def test_client_rejects_ids_no_server_answers():
     ({"gear": 2, "rpm": 6500.0}, lambda c: c["gear"] == 3),
     ({"gear": 3, "rpm": 2000.0}, lambda c: c["gear"] == 2),
     ({"gear": 6, "rpm": 9000.0}, lambda c: c["gear"] == 6),
+    # the SCR sample driver keeps 2nd down to 2500 rpm (a 3000 floor made madsim-sedan hunt
+    # 1-2-1-2 for 90 s after the launch of the README's `madsim drive` race)
+    ({"gear": 2, "rpm": 2800.0}, lambda c: c["gear"] == 2),
+    ({"gear": 2, "rpm": 2500.0}, lambda c: c["gear"] == 1),
+    ({"gear": 5, "rpm": 3400.0}, lambda c: c["gear"] == 4),
 ])
 def test_simple_driver_rules(changes, check):
     controls = simple_driver(state(0, **changes))
