@@ -70,6 +70,20 @@ class ServerStats:
     laps: list = field(default_factory=list)   # (race, car, lap, lap time s)
 
 
+@dataclass
+class _RaceState:
+    """What one race's loop carries from tick to tick (per-car lists: cheaper than numpy for
+    the usual few cars)."""
+
+    race: ServerTick
+    laps: list                    # laps per car, as last seen
+    cars: list                    # the `_Car`s still in the race
+    countdown: int                # start-countdown messages still to send
+    tick: int = 0
+    python_tick: bool = False     # the next tick goes through the Python loop
+    fast: SyncLoop | None = None  # the compiled sync loop, where it applies
+
+
 class _Car:
     """One scr_server instance: its socket and port, client address and last controls."""
 
@@ -293,96 +307,115 @@ class ScrServer:
         for c in self.cars:
             suite.set_angles(c.index, c.angles)
         race = ServerTick(world, suite, self._controls, self._inbox, self._inlen, MAX_DAMAGE)
-        # per-car bookkeeping as Python lists: cheaper than numpy for the usual few cars
-        laps = world.column("laps").tolist()
-        cars = list(self.cars)              # the cars still in the race
-        countdown = self.countdown_ticks
-        tick = self._race_ticks = 0
         self.clock.reset()
-        drain = self.mode != "timeout"      # TORCS's timeout mode reads one datagram per tick
-        race.run(SENSE, DONE, False, 0, countdown)
+        r = _RaceState(race, world.column("laps").tolist(), list(self.cars), self.countdown_ticks)
+        self._race_ticks = 0
+        race.run(SENSE, DONE, False, 0, r.countdown)
         # the usual sync ticks without Python in between (`sync_loop`): its hand-backs are
-        # finished here exactly as the Python loop below would do them
-        fast = None
+        # finished here exactly as the Python tick would do them
         if self.compiled_loop and SUPPORTED and self.mode == "sync" and writer is None and race.compiled \
                 and not self.noisy and self.clock.name == "fixed":
-            fast = SyncLoop([c.sock.fileno() for c in self.cars], [c.addr for c in self.cars], race,
-                            self.clock.substeps())
-        python_tick = False                 # the next tick goes through the Python loop
+            r.fast = SyncLoop([c.sock.fileno() for c in self.cars], [c.addr for c in self.cars], race,
+                              self.clock.substeps())
         while True:
             if self._stop:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
                 return "stopped"
-            finished = self._race_over(tick, laps, cars)
-            if fast is not None and countdown == 0 and not finished and not self._behind and not python_tick:
-                limit = self.max_ticks - tick if self.max_ticks is not None else 1 << 62
-                ticks, why, arg, foreign, waited_s = fast.run(limit)
-                if why == PENDING:      # the states went out, cars[:arg] answered
-                    self.stats.foreign_datagrams += foreign
-                    self._collect_sync(cars[arg:], waited_s)
-                    status = race.run(DECODE, DONE, True, fast.nsub, 0)
-                    ticks += 1
-                elif why == TICK:
-                    status = race.resume(arg, DONE, True, fast.nsub, 0) if arg < DONE else arg
-                self.stats.ticks += ticks
-                tick += ticks
-                self._race_ticks = tick
-                if why in (LIMIT, STALE):
-                    python_tick = why == STALE
+            finished = self._race_over(r.tick, r.laps, r.cars)
+            if r.fast is not None and r.countdown == 0 and not finished and not self._behind \
+                    and not r.python_tick:
+                status = self._compiled_ticks(r)
+                if status is None:
                     continue
             else:
-                python_tick = False
-                # stale datagrams (sync, realtime): one poll says whether any socket holds one
-                late = self._take_late(cars) if drain and not finished and self._poll.poll(0) else {}
-                for c in cars:
-                    self._send(c, race.message(c.index))
+                r.python_tick = False
                 if finished:
+                    for c in r.cars:
+                        self._send(c, race.message(c.index))
                     for c in self.cars:
                         self._send(c, P.SHUTDOWN_MESSAGE)
-                    self._final_table(world, tick, "race over")
+                    self._final_table(world, r.tick, "race over")
                     return "end"
-                self._collect(cars, late)
-                stepping = countdown == 0
-                label = tick if stepping else -countdown
-                if not stepping:
-                    countdown -= 1
-                nsub = self.clock.substeps() if stepping else 0
-                if writer is None:
-                    status = race.run(DECODE, DONE, stepping, nsub, countdown)
-                else:      # the row of the state sent and the controls applied, before the step
-                    race.run(DECODE, STEP, stepping, nsub, countdown)
-                    self._write_csv(writer, label, world, SensorFrame(race.flat, race.cars), self._controls)
-                    status = race.run(STEP, DONE, stepping, nsub, countdown)
-                if stepping:
-                    self.stats.ticks += 1
-                    tick += 1
-                    self._race_ticks = tick
-            if status == DONE:
-                continue
-            # the bookkeeping's turn: malformed answers, laps, cars out, a restart request
-            self.stats.bad_datagrams += race.bad_datagrams
-            race.bad_datagrams = 0
-            now_laps = world.column("laps").tolist()
-            if now_laps != laps:
-                self._log_laps(world, now_laps, laps)
-                laps = now_laps
-                race.laps_seen[:] = now_laps
-            damage = world.column("damage").tolist()
-            if max(damage) > MAX_DAMAGE:
-                cars = [c for c in cars if damage[c.index] <= MAX_DAMAGE]
-                if fast is not None:
-                    fast.set_cars(c.index for c in cars)
-                for c in self.cars:
-                    if damage[c.index] > MAX_DAMAGE:
-                        self._inlen[c.index] = -1     # out of the race: no answer read again
-            restart_by = next((c.index for c in cars if race.meta[c.index] == 1), None)
-            if restart_by is not None:
-                self.stats.restarts += 1
-                self.log(f"restart requested by the client of car {restart_by}")
-                for c in self.cars:
-                    self._send(c, P.RESTART_MESSAGE if c.index == restart_by else P.SHUTDOWN_MESSAGE)
+                status = self._python_tick(r, writer, world)
+            if status != DONE and self._bookkeeping(r, world):
                 return "restart"
+
+    def _compiled_ticks(self, r: "_RaceState"):
+        """Ticks in `SyncLoop` until it hands back; finishes the tick it handed back in the
+        middle of. Returns the race's status after that tick, or None when there is none to
+        look at (a tick limit, or a stale datagram: the next tick goes through Python)."""
+        limit = self.max_ticks - r.tick if self.max_ticks is not None else 1 << 62
+        ticks, why, arg, foreign, waited_s = r.fast.run(limit)
+        status = None
+        if why == PENDING:      # the states went out, cars[:arg] answered
+            self.stats.foreign_datagrams += foreign
+            self._collect_sync(r.cars[arg:], waited_s)
+            status = r.race.run(DECODE, DONE, True, r.fast.nsub, 0)
+            ticks += 1
+        elif why == TICK:
+            status = r.race.resume(arg, DONE, True, r.fast.nsub, 0) if arg < DONE else arg
+        self.stats.ticks += ticks
+        r.tick += ticks
+        self._race_ticks = r.tick
+        if why in (LIMIT, STALE):
+            r.python_tick = why == STALE
+            return None
+        return status
+
+    def _python_tick(self, r: "_RaceState", writer, world) -> int:
+        """One tick (or countdown message) in Python: states out, answers in, the step."""
+        race, cars = r.race, r.cars
+        # stale datagrams (sync, realtime): one poll says whether any socket holds one
+        drain = self.mode != "timeout"      # TORCS's timeout mode reads one datagram per tick
+        late = self._take_late(cars) if drain and self._poll.poll(0) else {}
+        for c in cars:
+            self._send(c, race.message(c.index))
+        self._collect(cars, late)
+        stepping = r.countdown == 0
+        label = r.tick if stepping else -r.countdown
+        if not stepping:
+            r.countdown -= 1
+        nsub = self.clock.substeps() if stepping else 0
+        if writer is None:
+            status = race.run(DECODE, DONE, stepping, nsub, r.countdown)
+        else:      # the row of the state sent and the controls applied, before the step
+            race.run(DECODE, STEP, stepping, nsub, r.countdown)
+            self._write_csv(writer, label, world, SensorFrame(race.flat, race.cars), self._controls)
+            status = race.run(STEP, DONE, stepping, nsub, r.countdown)
+        if stepping:
+            self.stats.ticks += 1
+            r.tick += 1
+            self._race_ticks = r.tick
+        return status
+
+    def _bookkeeping(self, r: "_RaceState", world) -> bool:
+        """The race's events after a tick: malformed answers, laps, cars out, a restart request.
+        True when a client asked for a restart (every client has been told)."""
+        race = r.race
+        self.stats.bad_datagrams += race.bad_datagrams
+        race.bad_datagrams = 0
+        now_laps = world.column("laps").tolist()
+        if now_laps != r.laps:
+            self._log_laps(world, now_laps, r.laps)
+            r.laps = now_laps
+            race.laps_seen[:] = now_laps
+        damage = world.column("damage").tolist()
+        if max(damage) > MAX_DAMAGE:
+            r.cars = [c for c in r.cars if damage[c.index] <= MAX_DAMAGE]
+            if r.fast is not None:
+                r.fast.set_cars(c.index for c in r.cars)
+            for c in self.cars:
+                if damage[c.index] > MAX_DAMAGE:
+                    self._inlen[c.index] = -1     # out of the race: no answer read again
+        restart_by = next((c.index for c in r.cars if race.meta[c.index] == 1), None)
+        if restart_by is None:
+            return False
+        self.stats.restarts += 1
+        self.log(f"restart requested by the client of car {restart_by}")
+        for c in self.cars:
+            self._send(c, P.RESTART_MESSAGE if c.index == restart_by else P.SHUTDOWN_MESSAGE)
+        return True
 
     def _race_over(self, tick: int, laps: list, cars: list[_Car]) -> bool:
         """Max ticks reached, every car out, or every car still in the race done its laps."""
