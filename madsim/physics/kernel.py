@@ -668,7 +668,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
         # and the road gradient in the body frame from the road under the four wheels (TORCS's
         # SimCarUpdateForces: front minus rear over the wheelbase, left minus right over the track)
-        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, tsc, s_p, cpsi, spsi, dt)
+        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, surf, tsc, s_p, cpsi, spsi, dt)
         fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
         ax_kin = ax_s - G * gbx
         ay_kin = ay_s - G * gby
