@@ -442,9 +442,11 @@ def _axle_spin(cp, i, j, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
                     dw = 0.5 * (ratio - ratio_max) * common
                     bias = (ratio - ratio_max) * (1.0 if d_in >= 0.0 else -1.0)
                     if w0 > w1:
-                        w0, w1, bias = w0 - dw, w1 + dw, -bias
-                    else:
-                        w0, w1 = w0 + dw, w1 - dw
+                        dw, bias = -dw, -bias
+                    # the linearised tyre torques follow the clamped spins (implicit step; the
+                    # explicit one passes zero slopes and keeps TORCS's torques of the spins before)
+                    w0, w1 = w0 + dw, w1 - dw
+                    t0, t1 = t0 + s0 * dw, t1 - s1 * dw
                     a0, a1 = 0.5 * (1.0 + bias), 0.5 * (1.0 - bias)
         elif kind == DIFF_VISCOUS:
             a0 = cp[i, C_DMIN + j]
