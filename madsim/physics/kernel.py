@@ -416,7 +416,8 @@ def _axle_spin(cp, i, j, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
     1.3.7's form); LIMITED SLIP: a spool while d is above the locking input torque or below
     minus the locking brake torque, else free, with the speed ratio |w0 - w1| / (|w0| + |w1|)
     first clamped to max slip bias x (1 - d / locking torque) and d biased by the excess towards
-    the slower wheel; VISCOUS COUPLER: the right wheel gets min bias of d while not slower, up to
+    the slower wheel (the linearised torques t + s dw follow the clamp's change dw; with zero
+    slopes, the explicit step, they stay TORCS's torques of the spins before); VISCOUS COUPLER: the right wheel gets min bias of d while not slower, up to
     min + span (1 - exp(-visc |w0 - w1|)); SPOOL: one rigid body (both wheels the right one's
     spin); NONE: no drive torque once the wheels turn. At rest (w0 = w1 = 0) d / 2 each."""
     kind = int(cp[i, C_DKIND + j])
