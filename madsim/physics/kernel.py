@@ -56,7 +56,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
-from madsim.physics.suspension import G, body_vertical, roughness, wheel_loads
+from madsim.physics.suspension import G, body_vertical, on_piece, roughness, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -146,13 +146,7 @@ def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
 @numba.njit(inline="always", **_JIT)
 def _surface(pt, p, q, nw, half):
     """Material index under a point at distance q (m, may run one piece over) and offset nw."""
-    npieces = pt.shape[0]
-    if q < 0.0:
-        p = p - 1 if p > 0 else npieces - 1
-        q += pt[p, P_LEN]
-    elif q > pt[p, P_LEN]:
-        q -= pt[p, P_LEN]
-        p = p + 1 if p < npieces - 1 else 0
+    p, q = on_piece(pt, p, q)
     over_r = -nw - half
     over_l = nw - half
     if over_r > 0.0:

@@ -92,15 +92,23 @@ def _wheel_force(st, i, cp, k, v, state, bar, dt):
 
 
 @numba.njit(inline="always", **_JIT)
-def _road_z(pt, tsc, p, q, n):
-    """Road height, m, at distance q along piece p (may run one piece over either end) and
-    lateral offset n (track spec 5.4: linear right edge + banking, as `track_update`)."""
+def on_piece(pt, p, q):
+    """(piece, distance along it, m) of a point q m along piece p that may run one piece over
+    either end."""
     if q < 0.0:
         p = p - 1 if p > 0 else pt.shape[0] - 1
         q += pt[p, P_LEN]
     elif q > pt[p, P_LEN]:
         q -= pt[p, P_LEN]
         p = p + 1 if p < pt.shape[0] - 1 else 0
+    return p, q
+
+
+@numba.njit(inline="always", **_JIT)
+def _road_z(pt, tsc, p, q, n):
+    """Road height, m, at distance q along piece p (may run one piece over either end) and
+    lateral offset n (track spec 5.4: linear right edge + banking, as `track_update`)."""
+    p, q = on_piece(pt, p, q)
     u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
     b0, b1 = pt[p, P_B0], pt[p, P_B1]
     tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
@@ -134,13 +142,7 @@ def roughness(pt, surf, tsc, p, q, n):
     the distance into the curb from the road's edge and l the distance from the piece start
     along the zone's own centre line (the road's scaled by its radius in a turn). 0 on a
     smooth surface."""
-    npieces = pt.shape[0]
-    if q < 0.0:
-        p = p - 1 if p > 0 else npieces - 1
-        q += pt[p, P_LEN]
-    elif q > pt[p, P_LEN]:
-        q -= pt[p, P_LEN]
-        p = p + 1 if p < npieces - 1 else 0
+    p, q = on_piece(pt, p, q)
     w = tsc[T_WIDTH]
     t = n + 0.5 * w                      # TORCS's toRight on the road
     m = 0.0                              # the zone's centre line, m left of the road's
