@@ -56,7 +56,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
-from madsim.physics.suspension import G, body_vertical, wheel_loads
+from madsim.physics.suspension import G, body_vertical, on_piece, roughness, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -146,13 +146,7 @@ def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
 @numba.njit(inline="always", **_JIT)
 def _surface(pt, p, q, nw, half):
     """Material index under a point at distance q (m, may run one piece over) and offset nw."""
-    npieces = pt.shape[0]
-    if q < 0.0:
-        p = p - 1 if p > 0 else npieces - 1
-        q += pt[p, P_LEN]
-    elif q > pt[p, P_LEN]:
-        q -= pt[p, P_LEN]
-        p = p + 1 if p < npieces - 1 else 0
+    p, q = on_piece(pt, p, q)
     over_r = -nw - half
     over_l = nw - half
     if over_r > 0.0:
@@ -223,7 +217,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     dz_dn = tb if lo <= yr <= hi else 0.0
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
-    st[i, S_ROADZ] = z
+    st[i, S_ROADZ] = z + roughness(pt, surf, tsc, p, q, n)    # the z sensor's road (TORCS's RtTrackHeightL)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
@@ -416,7 +410,8 @@ def _axle_spin(cp, i, j, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
     1.3.7's form); LIMITED SLIP: a spool while d is above the locking input torque or below
     minus the locking brake torque, else free, with the speed ratio |w0 - w1| / (|w0| + |w1|)
     first clamped to max slip bias x (1 - d / locking torque) and d biased by the excess towards
-    the slower wheel; VISCOUS COUPLER: the right wheel gets min bias of d while not slower, up to
+    the slower wheel (the linearised torques t + s dw follow the clamp's change dw; with zero
+    slopes, the explicit step, they stay TORCS's torques of the spins before); VISCOUS COUPLER: the right wheel gets min bias of d while not slower, up to
     min + span (1 - exp(-visc |w0 - w1|)); SPOOL: one rigid body (both wheels the right one's
     spin); NONE: no drive torque once the wheels turn. At rest (w0 = w1 = 0) d / 2 each."""
     kind = int(cp[i, C_DKIND + j])
@@ -442,9 +437,11 @@ def _axle_spin(cp, i, j, drive, fb, w0, w1, t0, t1, s0, s1, i0, i1, b0, b1, dt):
                     dw = 0.5 * (ratio - ratio_max) * common
                     bias = (ratio - ratio_max) * (1.0 if d_in >= 0.0 else -1.0)
                     if w0 > w1:
-                        w0, w1, bias = w0 - dw, w1 + dw, -bias
-                    else:
-                        w0, w1 = w0 + dw, w1 - dw
+                        dw, bias = -dw, -bias
+                    # the linearised tyre torques follow the clamped spins (implicit step; the
+                    # explicit one passes zero slopes and keeps TORCS's torques of the spins before)
+                    w0, w1 = w0 + dw, w1 - dw
+                    t0, t1 = t0 + s0 * dw, t1 - s1 * dw
                     a0, a1 = 0.5 * (1.0 + bias), 0.5 * (1.0 - bias)
         elif kind == DIFF_VISCOUS:
             a0 = cp[i, C_DMIN + j]
@@ -668,7 +665,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- wheel loads (docs/physics.md): the suspension forces at the body's heave, roll, pitch
         # and the road gradient in the body frame from the road under the four wheels (TORCS's
         # SimCarUpdateForces: front minus rear over the wheelbase, left minus right over the track)
-        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, tsc, s_p, cpsi, spsi, dt)
+        fb0, fb1, fb2, fb3, packed, gbx, gby = wheel_loads(st, i, cp, pt, surf, tsc, s_p, cpsi, spsi, dt)
         fz0, fz1, fz2, fz3 = max(fb0, 0.0), max(fb1, 0.0), max(fb2, 0.0), max(fb3, 0.0)
         ax_kin = ax_s - G * gbx
         ay_kin = ay_s - G * gby

@@ -173,14 +173,16 @@ DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 PIECE_COLUMNS = GEO_COLUMNS + _enum(
     "zr0 zr1 bank0 bank1 tanbank0 surface "
     "border_w_r border_w_l border_surf_r border_surf_l side_w0_r side_w1_r side_w0_l side_w1_l "
-    "side_surf_r side_surf_l barrier_surf_r barrier_surf_l flag same_surface inv_length curvature"
+    "side_surf_r side_surf_l barrier_surf_r barrier_surf_l flag same_surface inv_length curvature "
+    "curb_r curb_l"
 )
 P = {name: i for i, name in enumerate(PIECE_COLUMNS)}
 (P_KIND, P_S0, P_LEN, P_R, P_ARC, P_X0, P_Y0, P_A0, P_CX, P_CY, P_CA0, P_SA0) = (
     GEO_KIND, GEO_S0, GEO_LEN, GEO_R, GEO_ARC, GEO_X0, GEO_Y0, GEO_A0, GEO_CX, GEO_CY, GEO_CA0, GEO_SA0)
 (P_ZR0, P_ZR1, P_B0, P_B1, P_TB0, P_SURF,
  P_BW_R, P_BW_L, P_BSURF_R, P_BSURF_L, P_SW0_R, P_SW1_R, P_SW0_L, P_SW1_L,
- P_SSURF_R, P_SSURF_L, P_WSURF_R, P_WSURF_L, P_FLAG, P_SAMESURF, P_INVLEN, P_CURV) = range(N_GEO, len(PIECE_COLUMNS))
+ P_SSURF_R, P_SSURF_L, P_WSURF_R, P_WSURF_L, P_FLAG, P_SAMESURF, P_INVLEN, P_CURV,
+ P_CURB_R, P_CURB_L) = range(N_GEO, len(PIECE_COLUMNS))
 N_PIECE = len(PIECE_COLUMNS)
 FLAG_LAST, FLAG_START = 1.0, 2.0
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from madsim.cars.spec import CarSpec
 from madsim.physics import layout as L
-from madsim.tracks.build import COL, LEFT
+from madsim.tracks.build import COL, LEFT, STYLE_CURB
 from madsim.tracks.track import Track
 
 SKID = {"rookie": 0.40, "amateur": 0.35, "semi-pro": 0.30, "pro": 0.0}
@@ -132,7 +132,9 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
 
 
 def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(pt (P, N_PIECE), surf (S, 2) friction/rolling resistance, tsc (4,)) for the kernels."""
+    """(pt (P, N_PIECE), surf (S, 4), tsc (4,)) for the kernels. surf's columns: friction, rolling
+    resistance, roughness amplitude (m: half the file's roughness, as TORCS) and wave number
+    (rad/m: 2 pi / roughness wavelength), see `suspension.roughness`."""
     p = track.pieces
     w = track.width
     npc = p.shape[0]
@@ -159,9 +161,12 @@ def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     kind = pt[:, L.P_KIND]
     with np.errstate(divide="ignore"):
         pt[:, L.P_CURV] = np.where(kind == 1, 1.0 / pt[:, L.P_R], np.where(kind == 2, -1.0 / pt[:, L.P_R], 0.0))
+    pt[:, L.P_CURB_R] = p[:, COL["border_style_r"]] == STYLE_CURB
+    pt[:, L.P_CURB_L] = p[:, COL["border_style_l"]] == STYLE_CURB
     road = pt[:, L.P_SURF]
     pt[:, L.P_SAMESURF] = (road == np.roll(road, 1)) & (road == np.roll(road, -1))
-    surf = np.array([[sf.friction, sf.rolling_resistance] for sf in track.surfaces], dtype=np.float64)
+    surf = np.array([[sf.friction, sf.rolling_resistance, sf.roughness, 2.0 * np.pi / sf.roughness_wavelength]
+                     for sf in track.surfaces], dtype=np.float64)
     tsc = np.array([track.length, w, float(track.side_bank_tangent[0]), float(track.side_bank_tangent[1])])
     return np.ascontiguousarray(pt), surf, tsc
 

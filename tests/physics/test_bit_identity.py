@@ -36,8 +36,8 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
-    "six_contact": "2dfa624949b41d591870a814c0501dd50b5b4b96dc8d4abb6108ac8968988863",
-    "four_wd": "0e6adecebb933fafb31d6f92840bd6ae6250a46e1406dc72f6f6ba986bb9899c",
+    "six_contact": "9b05d0f065872a3188e4a2bb7066beac7a04244035a976d5560c05e071bb3409",
+    "four_wd": "0cc419b9f33cecf61d00cf73056515fc85f88d1599bf6abfb6c19ffecf83f4cc",
     "vec_traffic": "11df21ccf59aad0a354cf93b3e5d9c8e2e6a652c32499799e130e32aa65048ad",
     "env_ts": "5bc844c7e1240baca25e22297e3455f3df1b93d99ea14c7a4d46af7afbdb93c7",
 }
