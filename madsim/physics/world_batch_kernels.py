@@ -35,7 +35,7 @@ from madsim.physics.sensors import sensor_kernel
 from madsim.physics.world_tick import rank_rows
 
 
-@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
+@numba.njit(cache=True, error_model="numpy", inline="always", **kernel.NO_REFCOUNT)
 def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub, dt,
                  fuel_on, with_contact, snap, path, turn, contact):
     """World.step for slot e from sub-step kpos[e] (the rest at once where provably nothing is
