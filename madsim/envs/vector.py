@@ -4,9 +4,10 @@
 `madsim.physics.world_batch.WorldBatch`: every tick advances all running episodes (and computes their
 sensors) in one compiled call, the traffic cars of all episodes are driven by one compiled call
 (madsim.agents.traffic_fleet), the built-in rewards and dones are one compiled call each
-(madsim.agents.component_batch.ComponentBatch, the same code MadrasEnv runs), and the rest of the
-agent side (actions, the T-S PID, observations) is numpy over the episodes. Each episode keeps its own track, cars, traffic,
-random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
+(madsim.agents.component_batch.ComponentBatch, the same code MadrasEnv runs); a tick's learner
+side (controls through the T-S PID or S-A-B mapping, rewards, dones, totals, observations) is
+three compiled calls over all episodes (madsim.agents.learner_kernel). Each episode keeps its
+own track, cars, traffic, random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
 `MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
 `gymnasium.vector.SyncVectorEnv` over `MadrasEnv`s). What stays in Python, per episode: resets
 (~0.3 ms each), observation noise and focus readings, action noise draws, user-defined
@@ -15,7 +16,7 @@ phase finds something near).
 
 Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
 Speed (benchmarks/bench_vector.py, per CPU-second of one core of this project's 2-core
-machine): ~180,000 env-steps/s at N = 1024, ~43,000 with four traffic cars per episode, most of
+machine): ~250,000 env-steps/s at N = 1024, ~55,000 with four traffic cars per episode, most of
 it the cars' own physics sub-steps; for a single episode `MadrasEnv` is faster (the numpy
 bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
 among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
