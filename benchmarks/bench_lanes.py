@@ -213,9 +213,10 @@ def main() -> None:
               "(CPU, component figure)")
         for g, (ns, st) in results.items():
             same = st.view(np.int64).tolist() == ref.view(np.int64).tolist()
+            verdict = "bit-identical" if same else "DIFFER"
             print(f"  {g} car(s) per loop body, {4 * g:2d} lanes: {ns:6.1f} ns per car sub-step "
-                  f"({results[1][0] / ns:4.2f}x; final states {'bit-identical' if same else 'DIFFER'}"
-                  " to wheel-major, 1 car, libm)")
+                  f"({results[1][0] / ns:4.2f}x; final states {verdict} to wheel-major, 1 car, "
+                  "libm)")
 
 
 if __name__ == "__main__":

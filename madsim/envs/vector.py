@@ -7,9 +7,10 @@ sensors) in one compiled call, the traffic cars of all episodes are driven by on
 (madsim.agents.component_batch.ComponentBatch, the same code MadrasEnv runs); a tick's learner
 side (controls through the T-S PID or S-A-B mapping, rewards, dones, totals, observations) is
 three compiled calls over all episodes (madsim.agents.learner_kernel). Each episode keeps its
-own track, cars, traffic, random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
-`MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
-`gymnasium.vector.SyncVectorEnv` over `MadrasEnv`s). What stays in Python, per episode: resets
+own track, cars, traffic, random streams, curriculum stage and autoreset, and everything it
+returns is bit-identical to a `MadrasEnv` with the same config and seeds
+(`tests/envs/test_vector.py` checks this against `gymnasium.vector.SyncVectorEnv` over
+`MadrasEnv`s). What stays in Python, per episode: resets
 (~0.3 ms each), observation noise and focus readings, action noise draws, user-defined
 (registered) rewards, dones and traffic targets, and contact resolution (only when the broad
 phase finds something near).
