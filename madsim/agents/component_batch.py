@@ -184,6 +184,11 @@ class ActionMap:
         self.sab = np.tile(_STOP, (n, 1))
         self.gear = np.ones(n)
 
+    @property
+    def controller(self) -> BatchedTS:
+        """The T-S controller's arrays (for S-A-B a stand-in of 0 slots: the kernels' types)."""
+        return self.pid if self.ts else self._no_ts
+
     def clip(self, actions: np.ndarray) -> np.ndarray:
         """Actions (m, dim) clipped into the Box."""
         return np.minimum(self.high, np.maximum(self.low, actions))
@@ -209,7 +214,7 @@ class ActionMap:
             g = chosen[:, -1]
             # Python's round() and np.round both round halves to even
             self.gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self.normalised else g)
-        ts = self.pid if self.ts else self._no_ts
+        ts = self.controller
         take_actions(slots, chosen, self.ts, self.normalised, ts.compat, ts.low, ts.high,
                      ts.target_speed, self.sab, ts.lane_des, ts.speed_des_kmh)
 
@@ -217,7 +222,7 @@ class ActionMap:
         """Controls (m, 4: steer, accel, brake, gear) of the coming tick for slots from their
         latest sensor rows (m, 79)."""
         out = np.empty((slots.shape[0], 4))
-        ts = self.pid if self.ts else self._no_ts
+        ts = self.controller
         fill_controls(slots, rows, self.ts, self.manual, self.sab, self.gear, ts.state, ts.params,
                       ts.fresh, ts.lane_des, ts.speed_des_kmh, out)
         return out

@@ -4,18 +4,20 @@
 `madsim.physics.world_batch.WorldBatch`: every tick advances all running episodes (and computes their
 sensors) in one compiled call, the traffic cars of all episodes are driven by one compiled call
 (madsim.agents.traffic_fleet), the built-in rewards and dones are one compiled call each
-(madsim.agents.component_batch.ComponentBatch, the same code MadrasEnv runs), and the rest of the
-agent side (actions, the T-S PID, observations) is numpy over the episodes. Each episode keeps its own track, cars, traffic,
-random streams, curriculum stage and autoreset, and everything it returns is bit-identical to a
-`MadrasEnv` with the same config and seeds (`tests/envs/test_vector.py` checks this against
-`gymnasium.vector.SyncVectorEnv` over `MadrasEnv`s). What stays in Python, per episode: resets
+(madsim.agents.component_batch.ComponentBatch, the same code MadrasEnv runs); a tick's learner
+side (controls through the T-S PID or S-A-B mapping, rewards, dones, totals, observations) is
+three compiled calls over all episodes (madsim.agents.learner_kernel). Each episode keeps its
+own track, cars, traffic, random streams, curriculum stage and autoreset, and everything it
+returns is bit-identical to a `MadrasEnv` with the same config and seeds
+(`tests/envs/test_vector.py` checks this against `gymnasium.vector.SyncVectorEnv` over
+`MadrasEnv`s). What stays in Python, per episode: resets
 (~0.3 ms each), observation noise and focus readings, action noise draws, user-defined
 (registered) rewards, dones and traffic targets, and contact resolution (only when the broad
 phase finds something near).
 
 Slot e of the batch holds episode e; its rows follow the env: traffic first, the learner last.
 Speed (benchmarks/bench_vector.py, per CPU-second of one core of this project's 2-core
-machine): ~180,000 env-steps/s at N = 1024, ~43,000 with four traffic cars per episode, most of
+machine): ~250,000 env-steps/s at N = 1024, ~55,000 with four traffic cars per episode, most of
 it the cars' own physics sub-steps; for a single episode `MadrasEnv` is faster (the numpy
 bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
 among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
@@ -36,6 +38,7 @@ from madsim.agents import dones as D
 from madsim.agents import rewards as R
 from madsim.agents.component_batch import ActionMap, ComponentBatch, speed_gear_many, weighted_sum
 from madsim.agents.curriculum import apply_stage, stage_index
+from madsim.agents.learner_kernel import tick_controls, tick_outcome
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
 from madsim.agents.traffic_fleet import TrafficFleet
@@ -45,9 +48,7 @@ from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
 from madsim.physics.world_batch import WorldBatch
 from madsim.physics.schedule import TorcsClock
-from madsim.physics.sensors import (
-    O_SX,
-)
+from madsim.physics.sensors import N_VALUES, O_SX
 
 __all__ = ["MadrasVectorEnv", "make_vec"]
 
@@ -95,6 +96,18 @@ class _Stage:
         self.dones = D.DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
                                           track_limits=s.track_limits,
                                           target_speed=agent.target_speed)
+
+
+class _Scratch:
+    """Per-tick scratch of `MadrasVectorEnv._ticks_compiled` for up to n episodes: the
+    learners' sensor rows before and after the tick, their track lengths and contact flags,
+    the k rewards' and kd dones' values, the controls."""
+
+    def __init__(self, n: int, k: int, kd: int):
+        self.prev, self.cur = np.zeros((n, N_VALUES)), np.zeros((n, N_VALUES))
+        self.length, self.collision = np.zeros(n), np.zeros(n, dtype=bool)
+        self.r_vals, self.d_vals = np.zeros((k, n)), np.zeros((kd, n))
+        self.controls = np.zeros((n, 4))
 
 
 class MadrasVectorEnv(VectorEnv):
@@ -219,6 +232,7 @@ class MadrasVectorEnv(VectorEnv):
         self._live = np.zeros(n, dtype=bool)
         self._started = False
         self._obs = np.zeros((n, self.builder.size), dtype=np.float32)
+        self._scratch = _Scratch(n, len(self._reward_names), len(self._done_names))
         self._dones_template = np.empty(n, dtype=object)
         for e in range(n):
             self._dones_template[e] = ()
@@ -302,7 +316,7 @@ class MadrasVectorEnv(VectorEnv):
             self._actions.start(e, batch.sensors[self._row[e]], st.agent.target_speed,
                                 st.agent.action_noise_std)
             infos = self._add_info(infos, info, e)
-        self._obs[slots] = self._observe(rows)
+        self.builder.observe_rows(batch.sensors, rows, self._obs, slots)
         self._live[slots] = True
         return infos
 
@@ -363,11 +377,6 @@ class MadrasVectorEnv(VectorEnv):
         if rows.size:
             self.fleet.act(self.batch.sensors, self.batch.controls, rows)
 
-    def _observe(self, rows: np.ndarray) -> np.ndarray:
-        """ObservationBuilder.from_wire over many rows (the same arithmetic, row by row)."""
-        b = self.builder
-        return b._finish(self.batch.sensors[rows][:, b._wire_index])
-
     # --- step --------------------------------------------------------------------------------
 
     def step(self, actions):
@@ -416,20 +425,91 @@ class MadrasVectorEnv(VectorEnv):
 
     def _step_slots(self, slots, chosen, rewards, terminated, truncated) -> dict:
         """MadrasCore.step for the episodes `slots` with their checked actions (m, dim)."""
-        batch = self.batch
-        u, flat, hits = batch.controls, batch.sensors, batch.hits
-        if self._scalar:
-            checked = chosen.tolist()       # what MadrasCore hands to rewards and dones
         self._actions.begin(slots, chosen, self._action_rng)
         m = slots.shape[0]
         total = np.zeros(m)
-        terms = None
         ticks = np.zeros(m, dtype=np.int64)
         term, trunc = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
         fired = np.zeros((m, len(self._done_names)), dtype=bool)
         running = np.arange(m)
         mask = np.zeros(self.num_envs, dtype=bool)
         traffic = bool(self._n_traffic[slots].any())
+        if self._scalar:                    # MadrasCore hands the checked actions to them
+            terms = self._ticks_numpy(slots, running, chosen.tolist(), mask, traffic, total,
+                                      ticks, term, trunc, fired)
+        else:
+            terms = self._ticks_compiled(slots, running, mask, traffic, total, ticks, term,
+                                         trunc, fired)
+        self.builder.observe_rows(self.batch.sensors, self._row[slots], self._obs, slots)
+        rewards[slots] = total
+        terminated[slots], truncated[slots] = term, trunc
+        self._live[slots] = ~(term | trunc)
+        cur = self.config.curriculum
+        if cur is not None and cur.unit == "steps":
+            self._progress[slots] += 1
+        # vector infos as gymnasium's _add_info builds them from MadrasEnv's step infos
+        n = self.num_envs
+        stepped = np.zeros(n, dtype=bool)
+        stepped[slots] = True
+        reward_terms: dict = {}
+        for name, v in zip(self._reward_names, terms):
+            full = np.zeros(n)
+            full[slots] = v
+            reward_terms[name] = full
+            reward_terms["_" + name] = stepped.copy()
+        dones = self._dones_template.copy()
+        dones[~stepped] = None
+        names = self._done_names
+        for i in np.flatnonzero(fired.any(axis=1)).tolist():
+            dones[slots[i]] = tuple(nm for nm, f in zip(names, fired[i]) if f)
+        all_ticks = np.zeros(n, dtype=np.int64)
+        all_ticks[slots] = ticks
+        return {"reward_terms": reward_terms, "_reward_terms": stepped,
+                "dones": dones, "_dones": stepped.copy(),
+                "ticks": all_ticks, "_ticks": stepped.copy()}
+
+    def _ticks_compiled(self, slots, running, mask, traffic, total, ticks, term, trunc,
+                        fired) -> np.ndarray:
+        """The step's ticks of episodes `slots` with built-in rewards and dones only: the
+        learners' controls before a tick and its rewards and dones after it in one compiled
+        call each (madsim.agents.learner_kernel). Fills total, ticks, term, trunc, fired (per
+        position in slots); returns the reward terms (k, m)."""
+        batch = self.batch
+        u, flat, hits = batch.controls, batch.sensors, batch.hits
+        acts, rw, dn = self._actions, self._rewards, self._dones
+        ts = acts.controller
+        sc = self._scratch
+        m = slots.shape[0]
+        terms = np.zeros((len(self._reward_names), m))
+        left = m
+        for k in range(self.ticks_per_step):
+            run = slots[running[:left]] if left < m else slots
+            rows = self._row[run]
+            tick_controls(run, rows, flat, sc.prev, acts.ts, acts.manual, acts.sab, acts.gear,
+                          ts.state, ts.params, ts.fresh, ts.lane_des, ts.speed_des_kmh,
+                          sc.controls, u)
+            if traffic:
+                self._traffic_controls(run)
+            mask[:] = False
+            mask[run] = True
+            self._tick(mask)
+            left = tick_outcome(rw.codes, rw.par, rw.state, dn.codes, dn.par, dn.state,
+                                self._weights, self._is_trunc, running[:left], run, rows, flat,
+                                hits, self._length, sc.prev, sc.cur, sc.length, sc.collision,
+                                sc.r_vals, sc.d_vals, k == 0, total, terms, ticks, term, trunc,
+                                fired, u)
+            if left == 0:
+                break
+        return terms
+
+    def _ticks_numpy(self, slots, running, checked, mask, traffic, total, ticks, term, trunc,
+                     fired) -> np.ndarray:
+        """`_ticks_compiled` where a reward or done is plain Python: it gets each episode's
+        rows and checked action (numpy over the episodes around the compiled built-ins)."""
+        batch = self.batch
+        u, flat, hits = batch.controls, batch.sensors, batch.hits
+        m = slots.shape[0]
+        terms = None
         for _ in range(self.ticks_per_step):
             run = slots[running]
             rows = self._row[run]
@@ -443,7 +523,7 @@ class MadrasVectorEnv(VectorEnv):
             cur = flat[rows]
             length = self._length[run]
             collision = hits[rows]
-            actions = [checked[i] for i in running.tolist()] if self._scalar else None
+            actions = [checked[i] for i in running.tolist()]
             r, values = weighted_sum(self._rewards.evaluate(run, prev, cur, length, collision,
                                                             actions), self._weights)
             total[running] += r
@@ -464,35 +544,7 @@ class MadrasVectorEnv(VectorEnv):
                 running = running[~done]
                 if running.size == 0:
                     break
-        self._obs[slots] = self._observe(self._row[slots])
-        rewards[slots] = total
-        terminated[slots], truncated[slots] = term, trunc
-        self._live[slots] = ~(term | trunc)
-        cur = self.config.curriculum
-        if cur is not None and cur.unit == "steps":
-            self._progress[slots] += 1
-        # vector infos as gymnasium's _add_info builds them from MadrasEnv's step infos
-        n = self.num_envs
-        stepped = np.zeros(n, dtype=bool)
-        stepped[slots] = True
-        reward_terms: dict = {}
-        if terms is None:
-            terms = np.zeros((len(self._reward_names), m))
-        for name, v in zip(self._reward_names, terms):
-            full = np.zeros(n)
-            full[slots] = v
-            reward_terms[name] = full
-            reward_terms["_" + name] = stepped.copy()
-        dones = self._dones_template.copy()
-        dones[~stepped] = None
-        names = self._done_names
-        for i in np.flatnonzero(fired.any(axis=1)).tolist():
-            dones[slots[i]] = tuple(nm for nm, f in zip(names, fired[i]) if f)
-        all_ticks = np.zeros(n, dtype=np.int64)
-        all_ticks[slots] = ticks
-        return {"reward_terms": reward_terms, "_reward_terms": stepped,
-                "dones": dones, "_dones": stepped.copy(),
-                "ticks": all_ticks, "_ticks": stepped.copy()}
+        return np.zeros((len(self._reward_names), m)) if terms is None else terms
 
     def _slot_infos(self, infos: dict, slots) -> list[dict]:
         """The MadrasEnv step infos of some episodes, taken out of the vector infos."""

@@ -103,7 +103,8 @@ class WorldBatch:
         self._curve_w = np.ones((c, 1))
         self._curve_t = np.zeros((c, 1))
         self._piece = np.zeros(c, dtype=np.int64)
-        self._snap = np.zeros_like(self.state)       # whole-tick scratch (contact_kernels.whole_tick)
+        # whole-tick scratch (contact_kernels.whole_tick), C order: a car's row in 10 cache lines
+        self._snap = np.zeros(self.state.shape)
         self._path, self._turn = np.zeros(c), np.zeros(c)
         angles = np.asarray(angles_deg, dtype=np.float64)
         if angles.shape != (19,):

@@ -5,10 +5,12 @@ batch's arrays, car axis first; see WorldBatch for the layout).
 The loops are module-level kernels in numba's disk cache (`madsim.kernel_cache` renews their
 entries when any kernel module changes): one per-slot body each, run by a serial and a parallel
 (slots shared among threads) loop. With contact off the broad phase is never called. The
-physics body keeps no array reference counts (`kernel.NO_REFCOUNT`): every per-track and
-per-slot table is a row range of one flat array (no typed lists, whose items are counted),
-sliced inside it; only the broad phase proper (it allocates) runs with counts, when a slot's
-cheap check `quiet` cannot prove it would find nothing.
+loops over slots and the bodies keep no array reference counts (`kernel.NO_REFCOUNT`): every
+per-track and per-slot table is a row range of one flat array (no typed lists, whose items are
+counted), sliced inside them; only the sorted slipstream (more than `kernel.SLIP_ALL_PAIRS`
+cars) and the broad phase proper (they allocate) run with counts, the broad phase only when a
+slot's cheap check `quiet` cannot prove it would find nothing. (A kernel compiled without
+counts cannot call one that allocates: numba compiles the callee without them too.)
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from madsim.physics.sensors import sensor_kernel
 from madsim.physics.world_tick import rank_rows
 
 
-@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
+@numba.njit(cache=True, error_model="numpy", inline="always", **kernel.NO_REFCOUNT)
 def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub, dt,
                  fuel_on, with_contact, snap, path, turn, contact):
     """World.step for slot e from sub-step kpos[e] (the rest at once where provably nothing is
@@ -86,33 +88,45 @@ def broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
     return near[e] != 0
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _advance_one(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits, nsub, dt,
-                 fuel_on, with_contact, snap, path, turn, contact):
-    """`advance_slot` for slot e, with the broad phase where it asks, until something is near
-    (near[e] != 0: the broad phase's answer) or the tick is done (near[e] = 0). (Inlined into
-    the loops: the tuples are unpacked only in the callees, which count no references.)"""
-    near[e] = 0
-    if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
-        kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
-    while advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub, dt,
-                        fuel_on, with_contact, snap, path, turn, contact):
-        if broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
-            break
+@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
+def advance_run(e0, e1, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece, hits,
+                nsub, dt, fuel_on, with_contact, snap, path, turn, contact):
+    """`advance_slot` for the slots e0 .. e1 - 1 where run[e], one after the other, each until
+    its tick is done (near[e] = 0); returns the first slot that needs the broad phase now
+    (its kpos[e] = sub-steps done), or e1 when none does. No reference counts: the loop over
+    slots passes its arrays and tuples on uncounted (`advance_slots` calls the counted parts,
+    the sorted slipstream and the broad phase, which allocate)."""
+    for e in range(e0, e1):
+        if run[e]:
+            near[e] = 0
+            if advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub,
+                            dt, fuel_on, with_contact, snap, path, turn, contact):
+                return e
+    return e1
 
 
 @numba.njit(cache=True, error_model="numpy")
 def advance_slots(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece, hits, nsub,
                   dt, fuel_on, with_contact, snap, path, turn, contact):
-    """`_advance_one` for every slot where run[e], one after the other. tables: (pt, pt_off,
-    surf, surf_off, tsc, n_geo), per-track tables stacked (track t: rows off[t]:off[t + 1];
-    tsc row t; n_geo[t] pieces); contact: (geo, geo_off, bar, bar_off, box, prm, wall_cache,
-    vref, pairs, pcap, meta, flags, slack): ContactSolver.broad_phase_args of every slot
-    (per track stacked, per car rows as `st`, per slot rows e; pairs[e, :pcap[e]])."""
-    for e in range(off.shape[0]):
-        if run[e]:
-            _advance_one(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits,
-                         nsub, dt, fuel_on, with_contact, snap, path, turn, contact)
+    """Every slot where run[e], one after the other: the sorted slipstream of slots with more
+    than `kernel.SLIP_ALL_PAIRS` cars at a tick's start, then `advance_run` with the broad phase
+    where a slot asks, until something is near (near[e] != 0: the broad phase's answer) or the
+    slot's tick is done (near[e] = 0). tables: (pt, pt_off, surf, surf_off, tsc, n_geo),
+    per-track tables stacked (track t: rows off[t]:off[t + 1]; tsc row t; n_geo[t] pieces);
+    contact: (geo, geo_off, bar, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags,
+    slack): ContactSolver.broad_phase_args of every slot (per track stacked, per car rows as
+    `st`, per slot rows e; pairs[e, :pcap[e]]). Slots are independent: the order of their
+    parts does not change a bit."""
+    n = off.shape[0]
+    for e in range(n):
+        if run[e] and kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
+            kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
+    e = 0
+    while e < n:
+        e = advance_run(e, n, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece,
+                        hits, nsub, dt, fuel_on, with_contact, snap, path, turn, contact)
+        if e < n and broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
+            e += 1                       # something near: Python resolves it, the slot waits
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
@@ -121,8 +135,13 @@ def advance_slots_parallel(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos,
     """`advance_slots` with the slots shared among threads (independent: bit-identical)."""
     for e in numba.prange(off.shape[0]):
         if run[e]:
-            _advance_one(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits,
-                         nsub, dt, fuel_on, with_contact, snap, path, turn, contact)
+            if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
+                kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
+            while advance_run(e, e + 1, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos,
+                              near, piece, hits, nsub, dt, fuel_on, with_contact, snap, path,
+                              turn, contact) == e:
+                if broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
+                    break
 
 
 @numba.njit(cache=True, inline="always")
@@ -166,7 +185,7 @@ def quiet(st, a, b, piece, n_geo, cars, prm, wall_cache, vref, pairs, meta, flag
     return True
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
 def sense_slot(e, st, off, ncar, trk, tables, half, angles, race_pos, origin, active, max_range,
                 local, out):
     """SensorSuite.frame without focus and noise for slot e's cars. tables: (geo, geo_off,
@@ -179,7 +198,7 @@ def sense_slot(e, st, off, ncar, trk, tables, half, angles, race_pos, origin, ac
                   angles[a:b], race_pos[a:b], origin[a:b], active[a:b], max_range, out[a:b])
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
 def sense_slots(st, run, off, ncar, trk, tables, half, angles, race_pos, origin, active,
                 max_range, local, out):
     """`sense_slot` for every slot where run[e], one after the other."""
@@ -199,7 +218,7 @@ def sense_slots_parallel(st, run, off, ncar, trk, tables, half, angles, race_pos
                         max_range, local, out)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", **kernel.NO_REFCOUNT)
 def race_positions(st, run, off, ncar, race_pos):
     """World._update_race_pos per slot where run[e]: rank by laps, then distance raced, then
     row."""

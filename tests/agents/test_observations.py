@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from madsim.agents.observations import ObservationBuilder
-from madsim.physics.sensors import SENSOR_ORDER, SensorFrame
+from madsim.physics.sensors import N_VALUES, SENSOR_ORDER, SensorFrame
 
 
 def scr_row(**kw):
@@ -105,3 +105,25 @@ def test_bad_modes_are_refused():
         ObservationBuilder("Fields")
     with pytest.raises(ValueError, match="unknown SCR field"):
         ObservationBuilder("Fields", ["speed"])
+
+
+@pytest.mark.parametrize("mode, normalise", [("TorcsObs", False), ("SingleAgentInTrafficObs", True),
+                                             ("SingleAgentSimpleLapObs", False)])
+def test_observe_rows_gives_from_wires_bits_for_many_rows(mode, normalise):
+    """make_vec's compiled observation of many rows = from_wire row by row, to the bit, on
+    values at and beyond the bounds, signed zeros, infinities and NaN (np.clip's rules)."""
+    b = ObservationBuilder(mode, normalise=normalise)
+    rng = np.random.default_rng(3)
+    special = np.array([0.0, -0.0, 1.0, -1.0, 200.0, -200.0, math.pi, -math.pi, np.inf, -np.inf,
+                        np.nan, 1e300, 0.5, -0.005])
+    flat = rng.normal(0.0, 150.0, (64, N_VALUES))
+    flat[::2] = rng.choice(special, size=flat[::2].shape)
+    rows = rng.permutation(64)[:40]
+    out_rows = rng.permutation(50)[:40]
+    out = np.full((50, b.size), 7.0, dtype=np.float32)
+    b.observe_rows(flat, rows, out, out_rows)
+    with np.errstate(invalid="ignore", over="ignore"):     # inf * 0, 1e300 in float32
+        want = np.stack([b.from_wire(flat[r]) for r in rows])
+    assert out[out_rows].view(np.int32).tolist() == want.view(np.int32).tolist()
+    untouched = np.setdiff1d(np.arange(50), out_rows)
+    assert (out[untouched] == 7.0).all()
