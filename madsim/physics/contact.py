@@ -110,8 +110,7 @@ from madsim.physics.contact_kernels import (
     _broad_phase,
     _fill_poses,
     _membership,
-    _respond,
-    _settle,
+    _respond_settle,
     advance_until_near,
     advance_until_near_parallel,
 )
@@ -329,6 +328,13 @@ class ContactSolver:
             return self._empty
         return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
 
+    def resolve_flagged(self, x, y, yaw, vx, vy, yaw_rate, piece, dt) -> ContactReport:
+        """`resolve` for a caller whose compiled loop has just run `broad_phase_kernel` on this
+        very state and found cars near (it returned > 0): the same result without checking the
+        arrays or running the broad phase again (World's arrays, `advance_until_near`)."""
+        self._counts["calls"] += 1
+        return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
+
     def _explain_bad_arrays(self, *args) -> None:
         n = self.n_cars
         names = ("x", "y", "yaw", "vx", "vy", "yaw_rate", "piece")
@@ -363,12 +369,10 @@ class ContactSolver:
         need = ints.size // _ARB_INTS + 4 * self._meta[1] + 1
         if need > self._pair_out.shape[0]:
             self._pair_out = np.zeros((2 * need, 2), dtype=np.int64)
-        count = _respond(ints, floats, self._id_keys, self._id_codes, x, y, yaw, vx, vy, w, piece,
-                         self._cars, self._mat, self._geo, self._bar, self._prm, wall, car, damage,
-                         self._blocked, self._moved, self._travel, self._pair_out)
-        count = _settle(x, y, yaw, piece, self._cars, self._geo, self._bar, self._prm, self._pairs,
-                        self._meta, self._flags, self._slack, wall, car, self._blocked, self._moved,
-                        self._travel, self._pair_out, count)
+        count = _respond_settle(ints, floats, self._id_keys, self._id_codes, x, y, yaw, vx, vy, w,
+                                piece, self._cars, self._mat, self._geo, self._bar, self._prm,
+                                self._pairs, self._meta, self._flags, self._slack, wall, car,
+                                damage, self._blocked, self._moved, self._travel, self._pair_out)
         pairs = sorted(map(tuple, self._pair_out[:count].tolist()))
         return ContactReport(wall=wall, car=car, damage=damage, pairs=pairs)
 

@@ -625,6 +625,18 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
     return count
 
 @numba.njit(cache=True)
+def _respond_settle(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar,
+                    prm, pairs, meta, flags, slack, wall, car, damage, blocked, moved, travel,
+                    pair_out):
+    """`_respond` then `_settle` in one call (what `ContactSolver` runs after each pymunk
+    step); returns the car pairs written to `pair_out`."""
+    count = _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar,
+                     prm, wall, car, damage, blocked, moved, travel, pair_out)
+    return _settle(x, y, yaw, piece, cars, geo, bar, prm, pairs, meta, flags, slack, wall, car,
+                   blocked, moved, travel, pair_out, count)
+
+
+@numba.njit(cache=True)
 def _same_level(geo, prm, cars, piece, x, y, i, j):
     """False if cars i and j are far apart along the track although close in plan (one passes
     over the other on a bridge): their distances from start differ by more than touching boxes
