@@ -109,7 +109,7 @@ from madsim.physics.contact_kernels import (
     WINDOW_SLACK_M,
     _broad_phase,
     _fill_poses,
-    _membership,
+    _membership_poses,
     _respond_settle,
     advance_until_near,
     advance_until_near_parallel,
@@ -353,11 +353,14 @@ class ContactSolver:
         n = self.n_cars
         if self._space is None:
             self._take_space()
-        self._sync_members()
+        n_add, n_drop = _membership_poses(self._flags, self._member, self._idle, self._add,
+                                          self._drop, self._slots, x, y, yaw, self._poses)
+        if n_add or n_drop:
+            self._sync_members(n_add, n_drop)
+            _fill_poses(self._slots, x, y, yaw, self._poses)
         wall = np.zeros(n, dtype=bool)
         car = np.zeros(n, dtype=bool)
         damage = np.zeros(n)
-        _fill_poses(self._slots, x, y, yaw, self._poses)
         pmb.set_space_bodies(self._space, _BODY_FIELDS, self._set_buf)
         self._space.step(dt)
         self._counts["pymunk_steps"] += 1
@@ -387,15 +390,14 @@ class ContactSolver:
         self._code_of = dict(zip(keys.tolist(), codes.tolist()))
         self._refresh_slots()
 
-    def _sync_members(self) -> None:
-        """Add flagged cars to the pymunk space; drop cars idle for IDLE_CALLS consultations."""
-        n_add, n_drop = _membership(self._flags, self._member, self._idle, self._add, self._drop)
+    def _sync_members(self, n_add: int, n_drop: int) -> None:
+        """Put the cars `_membership` chose (self._add[:n_add]: flagged, self._drop[:n_drop]:
+        idle for IDLE_CALLS consultations) into and out of the pymunk space."""
         for i in self._add[:n_add]:
             self._space.add(self._bodies[i], self._shapes[i])
         for i in self._drop[:n_drop]:
             self._space.remove(self._bodies[i], self._shapes[i])
-        if n_add or n_drop:
-            self._refresh_slots()
+        self._refresh_slots()
 
     def _refresh_slots(self) -> None:
         """Read pymunk's body order (set_space_bodies writes bodies in that order)."""

@@ -354,6 +354,16 @@ def _fill_poses(slots, x, y, yaw, poses):
             poses[3 * k], poses[3 * k + 1], poses[3 * k + 2] = -1e7 - 10.0 * k, -1e7, 0.0
 
 
+@numba.njit(cache=True)
+def _membership_poses(flags, member, idle, add, drop, slots, x, y, yaw, poses):
+    """`_membership`, then `_fill_poses` when no car enters or leaves (the usual consultation:
+    the space's body order stands); returns the two counts."""
+    n_add, n_drop = _membership(flags, member, idle, add, drop)
+    if n_add == 0 and n_drop == 0:
+        _fill_poses(slots, x, y, yaw, poses)
+    return n_add, n_drop
+
+
 _UNKNOWN = -(1 << 40)
 
 
