@@ -902,11 +902,22 @@ def split_tick(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on
     at every sub-step from its start pose less its path. So the broad phase could flag no
     lazy car and no pair of one and changes no cache for one whatever its pose on the way; it
     sees the near cars where they are. Arguments as `advance_until_near`'s."""
+    if nsub - k0 < 2:
+        return 0
+    _predict_motion(st, 0, st.shape[0], (nsub - k0) * dt, path, turn)
+    return split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x, y,
+                           yaw, piece, bp, near, snap, path, turn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x, y, yaw,
+                    piece, bp, near, snap, path, turn):
+    """`split_tick` with each car's path (m) and turn (rad) over the rest of the tick predicted
+    in path, turn (N,)."""
     n = st.shape[0]
     cars, prm, wall_cache, vref, pairs, meta = bp[2], bp[3], bp[4], bp[5], bp[6], bp[7]
-    if meta[0] == 0 or nsub - k0 < 2:
+    if meta[0] == 0:
         return 0
-    _predict_motion(st, 0, n, (nsub - k0) * dt, path, turn)
     lazy = np.empty(n, dtype=np.bool_)
     for i in range(n):
         lazy[i] = (_wall_outlasts(i, x, y, yaw, cars, prm, wall_cache, path, turn)
