@@ -939,8 +939,8 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
     cache_snap = wall_cache.copy()
     k = k0
     while True:
-        _advance_rows(st, lazy, False, cp, curve_w, curve_t, pt, surf, tsc, u, 1, dt, fuel_on, path,
-                      turn)
+        _advance_rows(st, lazy, np.int64(0), cp, curve_w, curve_t, pt, surf, tsc, u, np.int64(1), dt,
+                      fuel_on, path, turn)
         k += 1
         if k == nsub or not _lazy_apart(x, y, cars, vref, pairs, meta, lazy, path):
             break
@@ -950,8 +950,8 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
                                meta, bp[8], bp[9])
         if near[0] != 0:
             break
-    if not _advance_rows(st, lazy, True, cp, curve_w, curve_t, pt, surf, tsc, u, k - k0, dt,
-                         fuel_on, path, turn):
+    if not _advance_rows(st, lazy, np.int64(1), cp, curve_w, curve_t, pt, surf, tsc, u,
+                         np.int64(k - k0), dt, fuel_on, path, turn):
         for c in range(st.shape[1]):
             for i in range(n):
                 st[i, c] = snap[i, c]
@@ -965,13 +965,15 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
 @numba.njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _advance_rows(st, lazy, group, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt, fuel_on, path,
                   turn):
-    """`steps` sub-steps in one `advance_car` call for each car with lazy[i] == group; True if
-    each of them went at most path[i] m and turned at most turn[i] rad (the kernel's bounds:
-    its largest speed and yaw rate) and has a finite position."""
+    """`steps` sub-steps in one `advance_car` call for each car with lazy[i] == (group == 1);
+    True if each of them went at most path[i] m and turned at most turn[i] rad (the kernel's
+    bounds: its largest speed and yaw rate) and has a finite position. (group and steps are
+    int64 values, never literals: numba would compile a copy per literal.)"""
     ok = True
     span = steps * dt
+    want = group == 1
     for i in range(st.shape[0]):
-        if lazy[i] == group:
+        if lazy[i] == want:
             v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt,
                                         fuel_on)
             ok = (ok and span * math.sqrt(v2_max) <= path[i] and span * r_max <= turn[i]
