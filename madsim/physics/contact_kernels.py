@@ -952,11 +952,14 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
             break
     if not _advance_rows(st, lazy, np.int64(1), cp, curve_w, curve_t, pt, surf, tsc, u,
                          np.int64(k - k0), dt, fuel_on, path, turn):
-        for c in range(st.shape[1]):
+        for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
             for i in range(n):
                 st[i, c] = snap[i, c]
-        u[:] = u_snap
-        wall_cache[:] = cache_snap
+        for i in range(n):
+            for c in range(u.shape[1]):
+                u[i, c] = u_snap[i, c]
+            for c in range(wall_cache.shape[1]):
+                wall_cache[i, c] = cache_snap[i, c]
         return 0
     _near_after_sub_step(st, x, y, yaw, piece, bp, near)
     return k - k0
