@@ -109,9 +109,8 @@ from madsim.physics.contact_kernels import (
     WINDOW_SLACK_M,
     _broad_phase,
     _fill_poses,
-    _membership,
-    _respond,
-    _settle,
+    _membership_poses,
+    _respond_settle,
     advance_until_near,
     advance_until_near_parallel,
 )
@@ -329,6 +328,13 @@ class ContactSolver:
             return self._empty
         return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
 
+    def resolve_flagged(self, x, y, yaw, vx, vy, yaw_rate, piece, dt) -> ContactReport:
+        """`resolve` for a caller whose compiled loop has just run `broad_phase_kernel` on this
+        very state and found cars near (it returned > 0): the same result without checking the
+        arrays or running the broad phase again (World's arrays, `advance_until_near`)."""
+        self._counts["calls"] += 1
+        return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
+
     def _explain_bad_arrays(self, *args) -> None:
         n = self.n_cars
         names = ("x", "y", "yaw", "vx", "vy", "yaw_rate", "piece")
@@ -347,11 +353,14 @@ class ContactSolver:
         n = self.n_cars
         if self._space is None:
             self._take_space()
-        self._sync_members()
+        n_add, n_drop = _membership_poses(self._flags, self._member, self._idle, self._add,
+                                          self._drop, self._slots, x, y, yaw, self._poses)
+        if n_add or n_drop:
+            self._sync_members(n_add, n_drop)
+            _fill_poses(self._slots, x, y, yaw, self._poses)
         wall = np.zeros(n, dtype=bool)
         car = np.zeros(n, dtype=bool)
         damage = np.zeros(n)
-        _fill_poses(self._slots, x, y, yaw, self._poses)
         pmb.set_space_bodies(self._space, _BODY_FIELDS, self._set_buf)
         self._space.step(dt)
         self._counts["pymunk_steps"] += 1
@@ -363,12 +372,10 @@ class ContactSolver:
         need = ints.size // _ARB_INTS + 4 * self._meta[1] + 1
         if need > self._pair_out.shape[0]:
             self._pair_out = np.zeros((2 * need, 2), dtype=np.int64)
-        count = _respond(ints, floats, self._id_keys, self._id_codes, x, y, yaw, vx, vy, w, piece,
-                         self._cars, self._mat, self._geo, self._bar, self._prm, wall, car, damage,
-                         self._blocked, self._moved, self._travel, self._pair_out)
-        count = _settle(x, y, yaw, piece, self._cars, self._geo, self._bar, self._prm, self._pairs,
-                        self._meta, self._flags, self._slack, wall, car, self._blocked, self._moved,
-                        self._travel, self._pair_out, count)
+        count = _respond_settle(ints, floats, self._id_keys, self._id_codes, x, y, yaw, vx, vy, w,
+                                piece, self._cars, self._mat, self._geo, self._bar, self._prm,
+                                self._pairs, self._meta, self._flags, self._slack, wall, car,
+                                damage, self._blocked, self._moved, self._travel, self._pair_out)
         pairs = sorted(map(tuple, self._pair_out[:count].tolist()))
         return ContactReport(wall=wall, car=car, damage=damage, pairs=pairs)
 
@@ -383,15 +390,14 @@ class ContactSolver:
         self._code_of = dict(zip(keys.tolist(), codes.tolist()))
         self._refresh_slots()
 
-    def _sync_members(self) -> None:
-        """Add flagged cars to the pymunk space; drop cars idle for IDLE_CALLS consultations."""
-        n_add, n_drop = _membership(self._flags, self._member, self._idle, self._add, self._drop)
+    def _sync_members(self, n_add: int, n_drop: int) -> None:
+        """Put the cars `_membership` chose (self._add[:n_add]: flagged, self._drop[:n_drop]:
+        idle for IDLE_CALLS consultations) into and out of the pymunk space."""
         for i in self._add[:n_add]:
             self._space.add(self._bodies[i], self._shapes[i])
         for i in self._drop[:n_drop]:
             self._space.remove(self._bodies[i], self._shapes[i])
-        if n_add or n_drop:
-            self._refresh_slots()
+        self._refresh_slots()
 
     def _refresh_slots(self) -> None:
         """Read pymunk's body order (set_space_bodies writes bodies in that order)."""

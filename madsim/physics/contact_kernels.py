@@ -265,6 +265,36 @@ def _broad_phase(x, y, yaw, piece, geo, bar, cars, prm, wall_cache, vref, pairs,
 WHOLE_EPS_M = 1e-6          # rounding allowance of `tick_clear`'s bounds, m (and rad)
 
 
+@numba.njit(cache=True, inline="always")
+def _wall_outlasts(i, x, y, yaw, cars, prm, wall_cache, path, turn):
+    """True if car i's cached wall clearance outlasts a motion from (x, y, yaw)[i] along a path
+    of at most path[i] m turning at most turn[i] rad (`tick_clear`'s test of one car; False for
+    a bad pose or bound)."""
+    if not (math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(yaw[i])
+            and path[i] >= 0.0 and turn[i] >= 0.0):     # NaN bounds fail here too
+        return False
+    moved = math.sqrt((x[i] - wall_cache[i, 0]) ** 2 + (y[i] - wall_cache[i, 1]) ** 2)
+    moved += path[i] + WHOLE_EPS_M
+    spun = abs(_wrap(yaw[i] - wall_cache[i, 2])) + turn[i] + WHOLE_EPS_M
+    return moved < prm[P_MOVE_CAP] and cars[i, C_GAIN] * moved + cars[i, C_RAD] * spun < wall_cache[i, 3]
+
+
+@numba.njit(cache=True, inline="always")
+def _stays_listed(i, x, y, vref, path):
+    """True if car i, moving at most path[i] m, cannot leave its neighbour-list reference by
+    REBUILD_M (no rebuild on its account)."""
+    away = math.sqrt((x[i] - vref[i, 0]) ** 2 + (y[i] - vref[i, 1]) ** 2)
+    return away + path[i] + WHOLE_EPS_M < REBUILD_M
+
+
+@numba.njit(cache=True, inline="always")
+def _stays_apart(i, j, x, y, cars, path_i, path_j):
+    """True if cars i and j, moving at most path_i and path_j m, stay farther apart than their
+    bounding circles plus CAR_REACH_M (the broad phase's first pair test skips them)."""
+    gap = math.sqrt((x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2) - path_i - path_j
+    return gap - WHOLE_EPS_M > cars[i, C_RAD] + cars[j, C_RAD] + CAR_REACH_M
+
+
 @numba.njit(cache=True, **NO_REFCOUNT)
 def tick_clear(x, y, yaw, cars, prm, wall_cache, vref, pairs, meta, path, turn):
     """True if `_broad_phase` (same arguments) can flag no car and change no cache while each
@@ -275,29 +305,19 @@ def tick_clear(x, y, yaw, cars, prm, wall_cache, vref, pairs, meta, path, turn):
     to 0 and `slack`, which one call at the end sets as they would. False if unsure (a bad
     pose or bound, a neighbour list to build)."""
     n = x.shape[0]
-    move_cap = prm[P_MOVE_CAP]
     for i in range(n):
-        if not (math.isfinite(x[i]) and math.isfinite(y[i]) and math.isfinite(yaw[i])
-                and path[i] >= 0.0 and turn[i] >= 0.0):     # NaN bounds fail here too
-            return False
-        moved = math.sqrt((x[i] - wall_cache[i, 0]) ** 2 + (y[i] - wall_cache[i, 1]) ** 2)
-        moved += path[i] + WHOLE_EPS_M
-        spun = abs(_wrap(yaw[i] - wall_cache[i, 2])) + turn[i] + WHOLE_EPS_M
-        if not (moved < move_cap and cars[i, C_GAIN] * moved + cars[i, C_RAD] * spun
-                < wall_cache[i, 3]):
+        if not _wall_outlasts(i, x, y, yaw, cars, prm, wall_cache, path, turn):
             return False
     if n < 2:
         return True
     if meta[0] == 0:
         return False
     for i in range(n):
-        away = math.sqrt((x[i] - vref[i, 0]) ** 2 + (y[i] - vref[i, 1]) ** 2)
-        if not away + path[i] + WHOLE_EPS_M < REBUILD_M:
+        if not _stays_listed(i, x, y, vref, path):
             return False
     for k in range(meta[1]):
         i, j = pairs[k, 0], pairs[k, 1]
-        gap = math.sqrt((x[j] - x[i]) ** 2 + (y[j] - y[i]) ** 2) - path[i] - path[j]
-        if not gap - WHOLE_EPS_M > cars[i, C_RAD] + cars[j, C_RAD] + CAR_REACH_M:
+        if not _stays_apart(i, j, x, y, cars, path[i], path[j]):
             return False
     return True
 
@@ -332,6 +352,16 @@ def _fill_poses(slots, x, y, yaw, poses):
             poses[3 * k], poses[3 * k + 1], poses[3 * k + 2] = x[i], y[i], yaw[i]
         elif i >= 0:          # never hand pymunk a NaN: park the body far from everything
             poses[3 * k], poses[3 * k + 1], poses[3 * k + 2] = -1e7 - 10.0 * k, -1e7, 0.0
+
+
+@numba.njit(cache=True)
+def _membership_poses(flags, member, idle, add, drop, slots, x, y, yaw, poses):
+    """`_membership`, then `_fill_poses` when no car enters or leaves (the usual consultation:
+    the space's body order stands); returns the two counts."""
+    n_add, n_drop = _membership(flags, member, idle, add, drop)
+    if n_add == 0 and n_drop == 0:
+        _fill_poses(slots, x, y, yaw, poses)
+    return n_add, n_drop
 
 
 _UNKNOWN = -(1 << 40)
@@ -605,6 +635,18 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
     return count
 
 @numba.njit(cache=True)
+def _respond_settle(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar,
+                    prm, pairs, meta, flags, slack, wall, car, damage, blocked, moved, travel,
+                    pair_out):
+    """`_respond` then `_settle` in one call (what `ContactSolver` runs after each pymunk
+    step); returns the car pairs written to `pair_out`."""
+    count = _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar,
+                     prm, wall, car, damage, blocked, moved, travel, pair_out)
+    return _settle(x, y, yaw, piece, cars, geo, bar, prm, pairs, meta, flags, slack, wall, car,
+                   blocked, moved, travel, pair_out, count)
+
+
+@numba.njit(cache=True)
 def _same_level(geo, prm, cars, piece, x, y, i, j):
     """False if cars i and j are far apart along the track although close in plan (one passes
     over the other on a bridge): their distances from start differ by more than touching boxes
@@ -733,6 +775,16 @@ PREDICT_YAW_ACCEL = 100.0
 """rad/s^2: the yaw-rate gain per tick a whole-tick attempt assumes (checked after the tick)."""
 
 
+@numba.njit(cache=True, inline="always")
+def _predict_motion(st, a, b, span, path, turn):
+    """path[i], turn[i] for rows a..b-1: the farthest (m) and the most turn (rad) a whole-tick
+    attempt of `span` s assumes (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`; checked after it)."""
+    for i in range(a, b):
+        v = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
+        path[i] = span * (v + PREDICT_ACCEL * span)
+        turn[i] = span * min(abs(st[i, S_R]) + PREDICT_YAW_ACCEL * span, YAW_RATE_MAX)
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, cars, prm,
                wall_cache, vref, pairs, meta, snap, path, turn):
@@ -752,14 +804,18 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
     caller (it is inlined), serial elsewhere."""
     m = nsub
     while m > 0:                 # the most sub-steps (nsub, halved) the prediction allows
-        span = m * dt
-        for i in range(a, b):
-            v = math.sqrt(st[i, S_VXG] ** 2 + st[i, S_VYG] ** 2)
-            path[i] = span * (v + PREDICT_ACCEL * span)
-            turn[i] = span * min(abs(st[i, S_R]) + PREDICT_YAW_ACCEL * span, YAW_RATE_MAX)
+        _predict_motion(st, a, b, m * dt, path, turn)
         if tick_clear(st[a:b, S_X], st[a:b, S_Y], st[a:b, S_YAW], cars, prm, wall_cache, vref,
                       pairs, meta, path[a:b], turn[a:b]):
             break
+        if m == nsub and m > 1:  # not clear even standing still: no m is (the test is monotone)
+            for i in range(a, b):
+                path[i] = 0.0
+                turn[i] = 0.0
+            if not tick_clear(st[a:b, S_X], st[a:b, S_Y], st[a:b, S_YAW], cars, prm, wall_cache,
+                              vref, pairs, meta, path[a:b], turn[a:b]):
+                m = 0
+                break
         m //= 2
     if m > 0:
         for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
@@ -808,11 +864,140 @@ def advance_until_near(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt,
     k = k0
     n = np.int64(st.shape[0])
     while k < nsub:
+        if n >= SPLIT_MIN_CARS:
+            done = split_tick(st, cp, curve_w, curve_t, pt, surf, tsc, u, k, nsub, dt, fuel_on, x,
+                              y, yaw, piece, bp, near, snap, path, turn)
+            if done > 0:
+                k += done
+                if near[0] != 0:
+                    return k
+                continue
         k += whole_tick_rows(st, np.int64(0), n, cp, curve_w, curve_t, pt, surf, tsc, u, nsub - k,
                              dt, fuel_on, bp[2], bp[3], bp[4], bp[5], bp[6], bp[7], snap, path, turn)
         if _near_after_sub_step(st, x, y, yaw, piece, bp, near):
             return k
     return nsub
+
+
+SPLIT_MIN_CARS = 3
+"""`advance_until_near` tries `split_tick` with at least this many cars."""
+
+
+@numba.njit(cache=True, error_model="numpy")
+def split_tick(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x, y, yaw,
+               piece, bp, near, snap, path, turn):
+    """Sub-steps k0.. of a tick where some cars are near something and the others ("lazy")
+    provably are not: the near cars go one sub-step at a time with the broad phase after each,
+    the lazy ones wait at their start pose and catch up in one `advance_car` call at the first
+    sub-step where the broad phase needs them where they really are (something near, a
+    neighbour-list rebuild, a near car within reach of a lazy car's start circle plus its
+    path) or at the tick's end. Returns the sub-steps done, with near[0] the broad phase's
+    answer there on the true poses; or 0, having changed nothing, if no split applies or a lazy
+    car went farther than predicted (the caller then steps every car).
+
+    Bit-identical to stepping every car with the broad phase after each sub-step: a lazy car
+    i (predicted path and turn of the rest of the tick as `whole_tick`'s, then checked) keeps
+    its wall clearance, its neighbour-list reference, and every listed pair with another lazy
+    car beyond reach (`tick_clear`'s tests), and each of its pairs with a near car is checked
+    at every sub-step from its start pose less its path. So the broad phase could flag no
+    lazy car and no pair of one and changes no cache for one whatever its pose on the way; it
+    sees the near cars where they are. Arguments as `advance_until_near`'s."""
+    if nsub - k0 < 2:
+        return 0
+    _predict_motion(st, 0, st.shape[0], (nsub - k0) * dt, path, turn)
+    return split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x, y,
+                           yaw, piece, bp, near, snap, path, turn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x, y, yaw,
+                    piece, bp, near, snap, path, turn):
+    """`split_tick` with each car's path (m) and turn (rad) over the rest of the tick predicted
+    in path, turn (N,)."""
+    n = st.shape[0]
+    cars, prm, wall_cache, vref, pairs, meta = bp[2], bp[3], bp[4], bp[5], bp[6], bp[7]
+    if meta[0] == 0:
+        return 0
+    lazy = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        lazy[i] = (_wall_outlasts(i, x, y, yaw, cars, prm, wall_cache, path, turn)
+                   and _stays_listed(i, x, y, vref, path))
+    for k in range(meta[1]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        if (lazy[i] or lazy[j]) and not _stays_apart(i, j, x, y, cars, path[i], path[j]):
+            lazy[i] = False
+            lazy[j] = False
+    n_lazy = 0
+    for i in range(n):
+        n_lazy += lazy[i]
+    if n_lazy == 0 or n_lazy == n:
+        return 0             # nothing to split: whole_tick decides
+    for c in range(st.shape[1]):
+        for i in range(n):
+            snap[i, c] = st[i, c]
+    u_snap = u.copy()        # a shift's cap writes the accel command into u
+    cache_snap = wall_cache.copy()
+    k = k0
+    while True:
+        _advance_rows(st, lazy, np.int64(0), cp, curve_w, curve_t, pt, surf, tsc, u, np.int64(1), dt,
+                      fuel_on, path, turn)
+        k += 1
+        if k == nsub or not _lazy_apart(x, y, cars, vref, pairs, meta, lazy, path):
+            break
+        for i in range(n):
+            piece[i] = int(st[i, S_PIECE])
+        near[0] = _broad_phase(x, y, yaw, piece, bp[0], bp[1], cars, prm, wall_cache, vref, pairs,
+                               meta, bp[8], bp[9])
+        if near[0] != 0:
+            break
+    if not _advance_rows(st, lazy, np.int64(1), cp, curve_w, curve_t, pt, surf, tsc, u,
+                         np.int64(k - k0), dt, fuel_on, path, turn):
+        for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
+            for i in range(n):
+                st[i, c] = snap[i, c]
+        for i in range(n):
+            for c in range(u.shape[1]):
+                u[i, c] = u_snap[i, c]
+            for c in range(wall_cache.shape[1]):
+                wall_cache[i, c] = cache_snap[i, c]
+        return 0
+    _near_after_sub_step(st, x, y, yaw, piece, bp, near)
+    return k - k0
+
+
+@numba.njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _advance_rows(st, lazy, group, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt, fuel_on, path,
+                  turn):
+    """`steps` sub-steps in one `advance_car` call for each car with lazy[i] == (group == 1);
+    True if each of them went at most path[i] m and turned at most turn[i] rad (the kernel's
+    bounds: its largest speed and yaw rate) and has a finite position. (group and steps are
+    int64 values, never literals: numba would compile a copy per literal.)"""
+    ok = True
+    span = steps * dt
+    want = group == 1
+    for i in range(st.shape[0]):
+        if lazy[i] == want:
+            v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt,
+                                        fuel_on)
+            ok = (ok and span * math.sqrt(v2_max) <= path[i] and span * r_max <= turn[i]
+                  and math.isfinite(st[i, S_X]) and math.isfinite(st[i, S_Y]))
+    return ok
+
+
+@numba.njit(cache=True, **NO_REFCOUNT)
+def _lazy_apart(x, y, cars, vref, pairs, meta, lazy, path):
+    """True if the broad phase on these poses would rebuild no neighbour list and skip every
+    listed pair of a lazy and a near car by its first test, wherever the lazy car is within
+    path[i] m of (x, y)[i] (`split_tick`)."""
+    for i in range(x.shape[0]):       # (the broad phase's own rebuild test)
+        if (x[i] - vref[i, 0]) ** 2 + (y[i] - vref[i, 1]) ** 2 > REBUILD_M * REBUILD_M:
+            return False
+    for k in range(meta[1]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        if lazy[i] != lazy[j]:
+            if not _stays_apart(i, j, x, y, cars, path[i] if lazy[i] else path[j], 0.0):
+                return False
+    return True
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)

@@ -290,7 +290,8 @@ class World:
         pairs: list[tuple[int, int]] = []
         cols, piece = self._contact_cols, self._piece_i
         while True:       # resolve after sub-step k, then sub-steps on to the next near one
-            rep = solver.resolve(*cols, piece, DT)
+            # the broad phase found cars near on this very state (near[0] > 0): no second run
+            rep = (solver.resolve_flagged if near[0] > 0 else solver.resolve)(*cols, piece, DT)
             hit_w, hit_c = np.asarray(rep.wall, dtype=bool), np.asarray(rep.car, dtype=bool)
             if hit_w.any() or hit_c.any():
                 wall |= hit_w

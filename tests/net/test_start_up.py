@@ -82,7 +82,7 @@ def test_a_fresh_process_loads_every_race_kernel_from_the_disk_cache():
     assert found["after_warm_up"] == []
     # the kernels that used to be compiled per process are among the cache hits
     assert "madsim.physics.contact_kernels.advance_until_near" in found["hits"]
-    assert "madsim.physics.contact_kernels._respond" in found["hits"]
+    assert "madsim.physics.contact_kernels._respond_settle" in found["hits"]
     assert "madsim.net.server_tick.server_tick" in found["hits"]
 
 

@@ -89,8 +89,10 @@ def _drive(track_name, n, place, ticks, rng_seed=5, noise=0.3, sub_steps_only=Fa
     track = load_track(track_name)
     w = World(track, [load_car("madsim-sedan")] * n, np.random.default_rng(0), contact=True)
     w.reset(place, gears=2)
-    if sub_steps_only:
+    if sub_steps_only:      # every part of every tick on the sub-step path (not step_world's)
         w._stepper = _sub_steps_only
+        w._stepper_serial = None
+        w.tick_args = None
     rng = np.random.default_rng(rng_seed)
     before = None
     for _ in range(ticks):
@@ -106,13 +108,23 @@ def _drive(track_name, n, place, ticks, rng_seed=5, noise=0.3, sub_steps_only=Fa
 World = W.World
 
 
-@pytest.mark.parametrize("track_name, n, noise", [("madsim-street", 1, 2.0),
-                                                   ("madsim-speedway", 6, 1.0)])
-def test_whole_ticks_equal_substeps(track_name, n, noise):
+def _traffic_place(n, gap_m=5.2):
+    """Two cars nose to tail, gap_m between centres (they bump), and the others spread out
+    ahead: split ticks."""
+    s = np.r_[0.0, gap_m, 40.0 + 30.0 * np.arange(n - 2)]
+    return np.column_stack([s, np.zeros(n), np.r_[24.0, 20.0, np.full(n - 2, 20.0)]])
+
+
+@pytest.mark.parametrize("track_name, n, noise, packed", [("madsim-street", 1, 2.0, True),
+                                                          ("madsim-speedway", 6, 1.0, True),
+                                                          ("madsim-speedway", 6, 0.3, False)])
+def test_whole_ticks_equal_substeps(track_name, n, noise, packed):
     place = None
-    if n > 1:     # a packed group: car-car contacts and neighbour-list rebuilds
+    if n > 1 and packed:     # a packed group: car-car contacts and neighbour-list rebuilds
         place = np.column_stack([np.arange(n) * 9.0, (np.arange(n) % 2 - 0.5) * 2.5,
                                  np.full(n, 20.0)])
+    elif n > 1:              # two bumping cars among others clear of everything: split ticks
+        place = _traffic_place(n)
     whole, _ = _drive(track_name, n, place, 400, noise=noise)
     sub, _ = _drive(track_name, n, place, 400, noise=noise, sub_steps_only=True)
     assert np.array_equal(whole.state, sub.state)
@@ -127,3 +139,49 @@ def test_open_road_takes_whole_ticks():
     w, before = _drive("madsim-speedway", 1, None, 30)
     assert np.array_equal(w._snap, before)
     assert w._solver.stats["consults"] == 0
+
+
+def test_split_tick_steps_far_cars_in_one_call(oval):
+    # cars 0 and 1 within each other's reach, three clear of everything: split_tick takes the
+    # tick (returns 10, not 0) and ends where ten sub-steps with the broad phase after each end
+    n = 5
+    worlds = []
+    for _ in range(2):
+        w = World(oval, [load_car("madsim-sedan")] * n, np.random.default_rng(0), contact=True)
+        w.reset(_traffic_place(n), gears=2)
+        w.step(np.tile([0.0, 0.3, 0.0, 2.0, 0.0], (n, 1)), substeps=1)   # the neighbour list
+        worlds.append(w)
+    u = np.tile([0.0, 0.6, 0.0, 2.0, 0.0], (n, 1))
+    results = []
+    for w, stepper in zip(worlds, (contact_kernels.split_tick, _sub_steps_only)):
+        cols = w._contact_cols
+        k = stepper(w.state, w._cp, w._curve_w, w._curve_t, w._pt, w._surf, w._tsc, u.copy(), 0,
+                    10, W.DT, False, cols[0], cols[1], cols[2], w._piece_i,
+                    w._solver.broad_phase_args, w._near, w._snap, w._path, w._turn)
+        results.append((k, w._near[0], w.state.copy(), w._solver.broad_phase_args[4].copy()))
+    (k_split, near_split, st_split, cache_split), (k_sub, near_sub, st_sub, cache_sub) = results
+    assert k_split == k_sub == 10 and near_split == near_sub == 0
+    assert np.array_equal(st_split, st_sub) and np.array_equal(cache_split, cache_sub)
+
+
+def test_split_tick_undoes_a_lazy_car_that_went_farther_than_predicted(oval):
+    # predicted paths of 1 mm: the far cars are lazy, go farther, and the tick is given back
+    # untouched (state, controls, wall clearances) for the caller to step every car. Cars 0
+    # and 1 are 5 m apart, closer than their bounding circles (2 x 2.56 m): near even standing
+    n = 5
+    w = World(oval, [load_car("madsim-sedan")] * n, np.random.default_rng(0), contact=True)
+    w.reset(_traffic_place(n, gap_m=5.0), gears=2)
+    w.step(np.tile([0.0, 0.3, 0.0, 2.0, 0.0], (n, 1)), substeps=1)
+    u = np.tile([0.0, 0.6, 0.0, 3.0, 0.0], (n, 1))         # a shift: its cap writes into u
+    bp = w._solver.broad_phase_args
+    before = (w.state.copy(), u.copy(), bp[4].copy())
+    cols = w._contact_cols
+    w._snap[:] = 0.0
+    k = contact_kernels.split_predicted(
+        w.state, w._cp, w._curve_w, w._curve_t, w._pt, w._surf, w._tsc, u, 0, 10, W.DT, False,
+        cols[0], cols[1], cols[2], w._piece_i, bp, w._near, w._snap, np.full(n, 1e-3),
+        np.full(n, 1e-3))
+    assert k == 0
+    assert np.array_equal(w._snap, before[0])     # it split: the start state was kept
+    assert np.array_equal(w.state, before[0]) and np.array_equal(u, before[1])
+    assert np.array_equal(bp[4], before[2])
