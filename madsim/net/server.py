@@ -79,9 +79,15 @@ class _RaceState:
     laps: list                    # laps per car, as last seen
     cars: list                    # the `_Car`s still in the race
     countdown: int                # start-countdown messages still to send
-    tick: int = 0
+    python_ticks: int = 0         # world ticks stepped by Python (the loop's PENDING ones too)
     python_tick: bool = False     # the next tick goes through the Python loop
     fast: SyncLoop | None = None  # the compiled sync loop, where it applies
+
+    @property
+    def tick(self) -> int:
+        """World ticks of the race so far; right even when a signal lands in the middle of
+        the bookkeeping (the compiled loop counts its own in memory)."""
+        return self.python_ticks + (self.fast.ticks_run if self.fast is not None else 0)
 
 
 class _Car:
@@ -150,7 +156,7 @@ class ScrServer:
         self._stop = False
         self.cars: list[_Car] = []
         self.world = None
-        self._race_ticks = 0          # world ticks of the current race
+        self._race_state = None       # the current race's _RaceState
         self._warm = False            # kernels loaded (warm_up ran) in this process
         self._poll = select.poll()    # the sockets, to see at once whether any datagram is queued
         self._behind = 0              # cars dropped to timeout behaviour (sync mode)
@@ -296,7 +302,7 @@ class ScrServer:
                 csv_file.close()
             self.close()
         if stopped and self.world is not None:
-            self._final_table(self.world, self._race_ticks, "race stopped")
+            self._final_table(self.world, self._race_state.tick if self._race_state else 0, "race stopped")
         return self.stats
 
     def _race(self, writer, world) -> str:
@@ -308,8 +314,8 @@ class ScrServer:
             suite.set_angles(c.index, c.angles)
         race = ServerTick(world, suite, self._controls, self._inbox, self._inlen, MAX_DAMAGE)
         self.clock.reset()
-        r = _RaceState(race, world.column("laps").tolist(), list(self.cars), self.countdown_ticks)
-        self._race_ticks = 0
+        r = self._race_state = _RaceState(race, world.column("laps").tolist(), list(self.cars),
+                                          self.countdown_ticks)
         race.run(SENSE, DONE, False, 0, r.countdown)
         # the usual sync ticks without Python in between (`sync_loop`): its hand-backs are
         # finished here exactly as the Python tick would do them
@@ -352,12 +358,11 @@ class ScrServer:
             self.stats.foreign_datagrams += foreign
             self._collect_sync(r.cars[arg:], waited_s)
             status = r.race.run(DECODE, DONE, True, r.fast.nsub, 0)
+            r.python_ticks += 1
             ticks += 1
         elif why == TICK:
             status = r.race.resume(arg, DONE, True, r.fast.nsub, 0) if arg < DONE else arg
         self.stats.ticks += ticks
-        r.tick += ticks
-        self._race_ticks = r.tick
         if why in (LIMIT, STALE):
             r.python_tick = why == STALE
             return None
@@ -385,8 +390,7 @@ class ScrServer:
             status = race.run(STEP, DONE, stepping, nsub, r.countdown)
         if stepping:
             self.stats.ticks += 1
-            r.tick += 1
-            self._race_ticks = r.tick
+            r.python_ticks += 1
         return status
 
     def _bookkeeping(self, r: "_RaceState", world) -> bool:

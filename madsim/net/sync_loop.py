@@ -64,7 +64,9 @@ def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen,
     the race, `order` (M,) their indices in sending order; peers (N, 2) int64 each client's
     `sockaddr_in` as two int64s; inbox (N, B) uint8 / inlen (N,): the answers (as the Python
     loop fills them); out (N, W) uint8 / out_len (N,): the state messages to send (with their
-    NUL); scratch (6,) int64: the sender's address (2), its length, unused, a timespec (2).
+    NUL); scratch (6,) int64: the sender's address (2), its length, the ticks this loop has run
+    in the race (cumulative: in memory at once, so a signal between the call's return and the
+    caller's bookkeeping loses none), a timespec (2).
     The rest are `server_tick`'s arguments after `nsub` (ServerTick.args)."""
     m = order.shape[0]
     src = scratch[:2]
@@ -98,6 +100,7 @@ def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen,
         status = server_tick(0, DONE, True, True, nsub, st, snap, table, dt, fuel_on, length, half_width,
                              max_range, max_bytes, max_damage)
         ticks += 1
+        scratch[3] += 1
         if status != DONE:
             result[0] = TICK
             result[1] = status
@@ -134,6 +137,12 @@ class SyncLoop:
         self.scratch = np.zeros(6, dtype=np.int64)
         self.result = np.zeros(4, dtype=np.int64)
         self.set_cars(range(len(fds)))
+
+    @property
+    def ticks_run(self) -> int:
+        """Ticks this loop has run in the race so far, a TICK hand-back's included (a PENDING
+        hand-back's tick is finished and counted by the Python loop)."""
+        return int(self.scratch[3])
 
     def set_cars(self, indices) -> None:
         """The cars still in the race (indices, in sending order)."""
