@@ -217,7 +217,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     dz_dn = tb if lo <= yr <= hi else 0.0
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
-    st[i, S_ROADZ] = z + relief(pt, surf, tsc, p, q, n)    # the z sensor's road (TORCS's RtTrackHeightL)
+    st[i, S_ROADZ] = z + relief(pt, surf, tsc, p, q, n, True)    # the z sensor's road (TORCS's RtTrackHeightL)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
