@@ -56,7 +56,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
-from madsim.physics.suspension import G, body_vertical, on_piece, roughness, wheel_loads
+from madsim.physics.suspension import G, body_vertical, on_piece, relief, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -217,7 +217,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     dz_dn = tb if lo <= yr <= hi else 0.0
     st[i, S_GX] = dz_dq * ch - dz_dn * sh
     st[i, S_GY] = dz_dq * sh + dz_dn * ch
-    st[i, S_ROADZ] = z + roughness(pt, surf, tsc, p, q, n)    # the z sensor's road (TORCS's RtTrackHeightL)
+    st[i, S_ROADZ] = z + relief(pt, surf, tsc, p, q, n, True)    # the z sensor's road (TORCS's RtTrackHeightL)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours

@@ -174,7 +174,7 @@ PIECE_COLUMNS = GEO_COLUMNS + _enum(
     "zr0 zr1 bank0 bank1 tanbank0 surface "
     "border_w_r border_w_l border_surf_r border_surf_l side_w0_r side_w1_r side_w0_l side_w1_l "
     "side_surf_r side_surf_l barrier_surf_r barrier_surf_l flag same_surface inv_length curvature "
-    "curb_r curb_l"
+    "curb_r curb_l curb_rise_r curb_rise_l"
 )
 P = {name: i for i, name in enumerate(PIECE_COLUMNS)}
 (P_KIND, P_S0, P_LEN, P_R, P_ARC, P_X0, P_Y0, P_A0, P_CX, P_CY, P_CA0, P_SA0) = (
@@ -182,7 +182,9 @@ P = {name: i for i, name in enumerate(PIECE_COLUMNS)}
 (P_ZR0, P_ZR1, P_B0, P_B1, P_TB0, P_SURF,
  P_BW_R, P_BW_L, P_BSURF_R, P_BSURF_L, P_SW0_R, P_SW1_R, P_SW0_L, P_SW1_L,
  P_SSURF_R, P_SSURF_L, P_WSURF_R, P_WSURF_L, P_FLAG, P_SAMESURF, P_INVLEN, P_CURV,
- P_CURB_R, P_CURB_L) = range(N_GEO, len(PIECE_COLUMNS))
+ P_CURB_R, P_CURB_L, P_CURBK_R, P_CURBK_L) = range(N_GEO, len(PIECE_COLUMNS))
+"""P_CURB_*: 1 where that side's border is a curb; P_CURBK_*: the curb's rise, m per m of depth
+into it from the road's edge (TORCS's atan2(height, width), `suspension.relief`)."""
 N_PIECE = len(PIECE_COLUMNS)
 FLAG_LAST, FLAG_START = 1.0, 2.0
 

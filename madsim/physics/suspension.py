@@ -14,8 +14,9 @@ import numba
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H, C_IXX, C_IYY,
     C_PACK, C_RIDE0, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
-    P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURV, P_INVLEN, P_LEN,
-    P_S0, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_ZR0, P_ZR1,
+    P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L, P_CURBK_R,
+    P_CURV, P_INVLEN, P_LEN, P_S0, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_R, P_TB0,
+    P_ZR0, P_ZR1,
     S_FZ, S_GX, S_GY, S_N, S_PIECE, S_PITCH, S_PITCHR, S_RIDE, S_ROLLA, S_ROLLR, S_S, S_SUSP,
     S_THEAD, S_VXG, S_VYG, S_VZ, S_WVZ, S_YAW, S_Z, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH,
 )
@@ -133,21 +134,26 @@ def _cg_on_piece(st, i, pt, tsc):
 
 
 @numba.njit(inline="always", **_JIT)
-def roughness(pt, surf, tsc, p, q, n):
-    """Road roughness, m, added to the road height at distance q along piece p (may run one
-    piece over either end) and lateral offset n (m, + left): TORCS 1.3.7's RtTrackHeightL
-    (docs/physics.md, "Road roughness"). On the road and on plain borders and sides it is
-    `a sin(k t) sin(k l)`, on a curb border `a sin(k l) d / width`, with a and k the surface's
-    amplitude and wave number (surf columns 2, 3), t the distance from the zone's right edge, d
-    the distance into the curb from the road's edge and l the distance from the piece start
-    along the zone's own centre line (the road's scaled by its radius in a turn). 0 on a
-    smooth surface."""
+def relief(pt, surf, tsc, p, q, n, main):
+    """Height, m, of the ground above the smooth road plane (`_road_z`) at distance q along
+    piece p (may run one piece over either end) and lateral offset n (m, + left): TORCS 1.3.7's
+    RtTrackHeightL (docs/physics.md, "Curbs" and "Road roughness"). On the road and on plain
+    borders and sides it is the roughness `a sin(k t) sin(k l)`; on a curb border it is the
+    curb's ramp `d atan2(h, w)` plus `a sin(k l) d / w`, with a and k the surface's amplitude
+    and wave number (surf columns 2, 3), t the distance from the zone's right edge, d the
+    distance into the curb from the road's edge, h and w the curb's height and width
+    (P_CURBK_* holds atan2(h, w)) and l the distance from the piece start along the zone's own
+    centre line (the road's scaled by its radius in a turn; a side's centre line at half its
+    start width). `main`: the point as TORCS locates the car itself (the `z` sensor), not a
+    wheel: on a right side with no border TORCS then measures t from the side's narrower end's
+    width, and a side that continues the road's cross slope gets the saw-tooth that follows
+    (docs/physics.md). 0 on a smooth road."""
     p, q = on_piece(pt, p, q)
     w = tsc[T_WIDTH]
     t = n + 0.5 * w                      # TORCS's toRight on the road
     m = 0.0                              # the zone's centre line, m left of the road's
     curb = False
-    d = bw = 0.0
+    d = bw = rise = base = 0.0
     j = int(pt[p, P_SURF])
     if t < 0.0:                          # right border, then right side
         bw = pt[p, P_BW_R]
@@ -155,13 +161,22 @@ def roughness(pt, surf, tsc, p, q, n):
         j = int(pt[p, P_BSURF_R])
         m = -0.5 * (w + bw)
         curb = pt[p, P_CURB_R] > 0.0
+        rise = pt[p, P_CURBK_R]
         d = bw - t
         if t < 0.0:
             u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
-            sw = pt[p, P_SW0_R] + u * (pt[p, P_SW1_R] - pt[p, P_SW0_R])
-            t += sw
+            sw0, sw1 = pt[p, P_SW0_R], pt[p, P_SW1_R]
+            if main and bw == 0.0:
+                wmin = min(sw0, sw1)
+                t += wmin
+                if tsc[T_TANGENT_R] > 0.0:
+                    b0, b1 = pt[p, P_B0], pt[p, P_B1]
+                    base = (wmin * math.tan(b0 + u * (b1 - b0)) - (1.0 - u) * sw0 * math.tan(b0)
+                            - u * sw1 * math.tan(b1))
+            else:
+                t += sw0 + u * (sw1 - sw0)
             j = int(pt[p, P_SSURF_R])
-            m = -0.5 * w - bw - 0.5 * sw
+            m = -0.5 * w - bw - 0.5 * sw0
             curb = False
     elif t > w:                          # left border, then left side
         bw = pt[p, P_BW_L]
@@ -169,27 +184,29 @@ def roughness(pt, surf, tsc, p, q, n):
         j = int(pt[p, P_BSURF_L])
         m = 0.5 * (w + bw)
         curb = pt[p, P_CURB_L] > 0.0
+        rise = pt[p, P_CURBK_L]
         d = t
         if t > bw:
-            u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
             t -= bw
             j = int(pt[p, P_SSURF_L])
-            m = 0.5 * w + bw + 0.5 * (pt[p, P_SW0_L] + u * (pt[p, P_SW1_L] - pt[p, P_SW0_L]))
+            m = 0.5 * w + bw + 0.5 * pt[p, P_SW0_L]
             curb = False
+    if curb:
+        base = d * rise
     a = surf[j, 2]
     if a == 0.0:
-        return 0.0
+        return base
     k = surf[j, 3]
     wave = math.sin(k * q * (1.0 - pt[p, P_CURV] * m))
     if curb:
-        return a * wave * d / bw
-    return a * math.sin(k * t) * wave
+        return base + a * wave * d / bw
+    return base + a * math.sin(k * t) * wave
 
 
 @numba.njit(inline="always", **_JIT)
 def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
     """Road height under wheel k of car i (its static x, y from the CG (p, q, n: `_cg_on_piece`)
-    along the track frame), without roughness."""
+    along the track frame), without curbs or roughness."""
     xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
     return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi)
 
@@ -197,8 +214,8 @@ def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
 @numba.njit(inline="always", **_JIT)
 def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     """Vertical wheel forces of car i on the body (N, wheel order), from its suspensions and
-    anti-roll bars at the body's present heave, roll and pitch over the road with its roughness
-    (`roughness`; docs/physics.md); sp = sin
+    anti-roll bars at the body's present heave, roll and pitch over the road with its curbs and
+    roughness (`relief`; docs/physics.md); sp = sin
     pitch, (cpsi, spsi) = (cos, sin) of yaw - track heading (the caller has them). Stores each
     wheel's ride height and suspension state. Returns (f0, f1, f2, f3, packer mask: bit k set
     when wheel k sits on its packers, the road gradient along and across the body (+: rising
@@ -214,7 +231,7 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     for k in range(4):
         xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
         qk, nk = q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi
-        road = _road_z(pt, tsc, p, qk, nk) + roughness(pt, surf, tsc, p, qk, nk)
+        road = _road_z(pt, tsc, p, qk, nk) + relief(pt, surf, tsc, p, qk, nk, False)
         road_fr += road if k < 2 else -road
         road_lr += road if k % 2 == 1 else -road
         ride = zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr - road

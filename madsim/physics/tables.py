@@ -134,7 +134,7 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
 def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(pt (P, N_PIECE), surf (S, 4), tsc (4,)) for the kernels. surf's columns: friction, rolling
     resistance, roughness amplitude (m: half the file's roughness, as TORCS) and wave number
-    (rad/m: 2 pi / roughness wavelength), see `suspension.roughness`."""
+    (rad/m: 2 pi / roughness wavelength), see `suspension.relief`."""
     p = track.pieces
     w = track.width
     npc = p.shape[0]
@@ -163,6 +163,10 @@ def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         pt[:, L.P_CURV] = np.where(kind == 1, 1.0 / pt[:, L.P_R], np.where(kind == 2, -1.0 / pt[:, L.P_R], 0.0))
     pt[:, L.P_CURB_R] = p[:, COL["border_style_r"]] == STYLE_CURB
     pt[:, L.P_CURB_L] = p[:, COL["border_style_l"]] == STYLE_CURB
+    # a curb rises by atan2(height, width) per metre into it (TORCS 1.3.7's RtTrackHeightL)
+    for curb, rise, sfx in ((L.P_CURB_R, L.P_CURBK_R, "r"), (L.P_CURB_L, L.P_CURBK_L, "l")):
+        bw = p[:, COL[f"border_w_{sfx}"]]
+        pt[:, rise] = np.where((pt[:, curb] > 0.0) & (bw > 0.0), np.arctan2(p[:, COL[f"border_h_{sfx}"]], bw), 0.0)
     road = pt[:, L.P_SURF]
     pt[:, L.P_SAMESURF] = (road == np.roll(road, 1)) & (road == np.roll(road, -1))
     surf = np.array([[sf.friction, sf.rolling_resistance, sf.roughness, 2.0 * np.pi / sf.roughness_wavelength]
