@@ -180,6 +180,28 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
+def rolling_drag(roll, v, r, m, izz, wb, dt):
+    """The rolling resistance's drag on the body, TORCS 1.3.7's SimCarUpdate (read in Debian's
+    simuv2.so; docs/physics.md, "Rolling resistance"). roll: the summed rolling resistance, N;
+    v: the speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz: yaw inertia, kg m^2; wb:
+    wheelbase, m; dt: step, s. Returns (rv, rm): the force is -rv times the velocity (rv in
+    N s/m) and the yaw moment -rm, N m. TORCS's two clamps, as it has them:
+    rv = roll / v unless rv dt / m > v, then v m / dt; rm = roll wb / 2 in the sign of r unless
+    roll wb / 2 / izz > |r|, then r izz (no dt in either comparison)."""
+    rv = 0.0
+    if v > 1e-5:
+        rv = roll / v
+        if rv / m * dt > v:
+            rv = v * m / dt
+    rm = roll * wb * 0.5
+    if rm / izz > abs(r):
+        rm = r * izz
+    else:
+        rm = math.copysign(rm, r)
+    return rv, rm
+
+
+@numba.njit(inline="always", **_JIT)
 def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
     piece, and store s, n, piece, track heading, road z, the road gradient at the CG, the surface
@@ -800,12 +822,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         mz = a * fy_f - b * fy_r - (fx0 * y0 + fx1 * y1 + fx2 * y2 + fx3 * y3)
 
         # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
-        vg = math.sqrt(vxg * vxg + vyg * vyg)
-        rv = min(roll / vg, m / dt) if vg > 1e-5 else 0.0
+        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz, wb, dt)
         vxg += ((fx * cy - fy * sy) - rv * vxg) / m * dt
         vyg += ((fx * sy + fy * cy) - rv * vyg) / m * dt
-        rm = min(roll * wb * 0.5, abs(r) * izz / dt)
-        r += (mz - math.copysign(rm, r)) / izz * dt
+        r += (mz - rm) / izz * dt
         r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
         ax_s = (fx_ng - rv * vx) / m
         ay_s = (fy_ng - rv * vy) / m
