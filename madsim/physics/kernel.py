@@ -181,23 +181,20 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 @numba.njit(inline="always", **_JIT)
 def rolling_drag(roll, v, r, m, izz, wb, dt):
-    """The rolling resistance's drag on the body, TORCS 1.3.7's SimCarUpdate (read in Debian's
-    simuv2.so; docs/physics.md, "Rolling resistance"). roll: the summed rolling resistance, N;
-    v: the speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz: yaw inertia, kg m^2; wb:
-    wheelbase, m; dt: step, s. Returns (rv, rm): the force is -rv times the velocity (rv in
-    N s/m) and the yaw moment -rm, N m. TORCS's two clamps, as it has them:
-    rv = roll / v unless rv dt / m > v, then v m / dt; rm = roll wb / 2 in the sign of r unless
-    roll wb / 2 / izz > |r|, then r izz (no dt in either comparison)."""
+    """The rolling resistance's drag on the body. roll: the summed rolling resistance, N; v: the
+    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz: yaw inertia, kg m^2; wb: wheelbase, m;
+    dt: step, s. Returns (rv, rm): the force is -rv times the velocity (rv in N s/m), the yaw
+    moment -rm, N m (docs/physics.md, "Rolling resistance").
+    rv is roll / v unless rv dt / m > v, then v m / dt: TORCS 1.3.7's clamp as SimCarUpdate has
+    it (read in Debian's simuv2.so), so a crawling car loses v^2 of its speed a step, not all of
+    it. rm is roll wb / 2 against the yaw, at most what stops the yaw in one step (TORCS's own
+    clamp is r izz, without the step time: not taken, see the docs)."""
     rv = 0.0
     if v > 1e-5:
         rv = roll / v
         if rv / m * dt > v:
             rv = v * m / dt
-    rm = roll * wb * 0.5
-    if rm / izz > abs(r):
-        rm = r * izz
-    else:
-        rm = math.copysign(rm, r)
+    rm = math.copysign(min(roll * wb * 0.5, abs(r) * izz / dt), r)
     return rv, rm
 
 

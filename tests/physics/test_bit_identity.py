@@ -12,6 +12,10 @@ six_contact and four_wd moved, the others kept their bits;
 before that, the kernel with TORCS's spin step and averages above 3 m/s and static toe, issue 12,
 and main's commit bb41c09).
 
+Then (issue 12's sand round) the rolling resistance's speed clamp as TORCS's SimCarUpdate has it
+(a crawling car loses v^2 of its speed a step): six_contact, four_wd, vec_traffic and env_ts
+moved, one_car kept its bits.
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
@@ -36,10 +40,10 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
-    "six_contact": "9b05d0f065872a3188e4a2bb7066beac7a04244035a976d5560c05e071bb3409",
-    "four_wd": "0cc419b9f33cecf61d00cf73056515fc85f88d1599bf6abfb6c19ffecf83f4cc",
-    "vec_traffic": "11df21ccf59aad0a354cf93b3e5d9c8e2e6a652c32499799e130e32aa65048ad",
-    "env_ts": "5bc844c7e1240baca25e22297e3455f3df1b93d99ea14c7a4d46af7afbdb93c7",
+    "six_contact": "a904b92873cc1d6cd39492d11a94154c6ca5cb9f6dd7803724aec442f9e2d099",
+    "four_wd": "69964f4a92f29c72b23d71b548fe58e70abc58f0da318c1c893d7f9986d562ef",
+    "vec_traffic": "40a91837412a39f556e7f2cb32665ab6073819514d632488de3c2c6f9d799a83",
+    "env_ts": "b13fcde1451ecc7d0caaa42bd9843081caefef5397d761b933e71eb28cd02dbc",
 }
 
 
