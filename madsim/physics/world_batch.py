@@ -44,7 +44,7 @@ from madsim.physics.sensors import (
 )
 from madsim.physics.tables import car_table, piece_table
 from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available
-from madsim.physics.contact_kernels import N_PRM
+from madsim.physics.contact_kernels import N_PRM, SNAP_COLUMNS
 from madsim.physics.world_batch_kernels import (
     advance_slots,
     advance_slots_parallel,
@@ -104,7 +104,7 @@ class WorldBatch:
         self._curve_t = np.zeros((c, 1))
         self._piece = np.zeros(c, dtype=np.int64)
         # whole-tick scratch (contact_kernels.whole_tick), C order: a car's row in 10 cache lines
-        self._snap = np.zeros(self.state.shape)
+        self._snap = np.zeros((c, SNAP_COLUMNS))
         self._path, self._turn = np.zeros(c), np.zeros(c)
         angles = np.asarray(angles_deg, dtype=np.float64)
         if angles.shape != (19,):
