@@ -218,5 +218,5 @@ def test_whole_tick_undo_restores_the_controls_a_shift_capped(oval):
     assert k == 1
     assert w._snap[0, L.S_GEAR] == 2.0      # the whole tick was tried (its start kept) ...
     assert ref_st[0, L.S_GEAR] == 3.0 and ref_u[0, L.U_ACCEL] == 0.8    # ... the shift began
+    assert np.array_equal(st, ref_st)       # main: the retried sub-step ran on accel 0.1
     assert np.array_equal(u, ref_u)
-    assert np.array_equal(st, ref_st)
