@@ -830,9 +830,9 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
     pass are not computed; after, with the bounds the kernel returns (the largest speed and
     yaw rate it reached), from the start poses. A failed check restores the rows and their
     controls `u` from `snap` ((len(st), SNAP_COLUMNS): a shift started in the tick has written
-    its cap into u) and does one sub-step, as the sub-step path would. `advance_car` runs n sub-steps per call exactly
-    as n calls of one, so a whole tick is bit-identical to sub-steps with the broad phase
-    between. path, turn: (len(st),) scratch. The car loop is a prange: parallel in a parallel
+    its cap into u) and does one sub-step, as the sub-step path would. `advance_car` runs n
+    sub-steps per call exactly as n calls of one, so a whole tick is bit-identical to sub-steps
+    with the broad phase between. path, turn: (len(st),) scratch. The car loop is a prange: parallel in a parallel
     caller (it is inlined), serial elsewhere."""
     m = nsub
     while m > 0:                 # the most sub-steps (nsub, halved) the prediction allows
