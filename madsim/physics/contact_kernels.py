@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from madsim.physics.kernel import NO_REFCOUNT, YAW_RATE_MAX, advance_car
-from madsim.physics.layout import S_PIECE, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
+from madsim.physics.layout import CONTROL_COLUMNS, N_STATE, S_PIECE, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
 from madsim.tracks.kernels import GEO_A0, GEO_KIND, GEO_LEN, GEO_R, GEO_S0, locate_from
 
 # --- TORCS response constants (spec torcs-car-format.md 4.12) ---------------------------------
@@ -785,6 +785,37 @@ def _predict_motion(st, a, b, span, path, turn):
         turn[i] = span * min(abs(st[i, S_R]) + PREDICT_YAW_ACCEL * span, YAW_RATE_MAX)
 
 
+SNAP_COLUMNS = N_STATE + len(CONTROL_COLUMNS)
+"""Width of the whole-tick scratch `snap` (one row per state row): a car's state, then its
+controls (a shift that starts in a tick writes its throttle cap into them, `kernel.advance_car`:
+a tick given back restores both)."""
+
+
+@numba.njit(cache=True, inline="always")
+def _save_rows(st, u, a, b, snap):
+    """snap[i] = st[i] followed by u[i], rows a..b-1 (plain loops: slice assignment compiles
+    slowly)."""
+    ns = st.shape[1]
+    for c in range(ns):
+        for i in range(a, b):
+            snap[i, c] = st[i, c]
+    for c in range(u.shape[1]):
+        for i in range(a, b):
+            snap[i, ns + c] = u[i, c]
+
+
+@numba.njit(cache=True, inline="always")
+def _restore_rows(st, u, a, b, snap):
+    """The inverse of `_save_rows`: st[i] and u[i] back from snap[i], rows a..b-1."""
+    ns = st.shape[1]
+    for c in range(ns):
+        for i in range(a, b):
+            st[i, c] = snap[i, c]
+    for c in range(u.shape[1]):
+        for i in range(a, b):
+            u[i, c] = snap[i, ns + c]
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_on, cars, prm,
                wall_cache, vref, pairs, meta, snap, path, turn):
@@ -797,10 +828,11 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
     The test is `tick_clear` twice: before, with each car's path and turn predicted from its
     speed and yaw rate (`PREDICT_ACCEL`, `PREDICT_YAW_ACCEL`), so that sub-steps that will not
     pass are not computed; after, with the bounds the kernel returns (the largest speed and
-    yaw rate it reached), from the start poses. A failed check restores the rows from `snap`
-    (same shape as `st`) and does one sub-step. `advance_car` runs n sub-steps per call exactly
-    as n calls of one, so a whole tick is bit-identical to sub-steps with the broad phase
-    between. path, turn: (len(st),) scratch. The car loop is a prange: parallel in a parallel
+    yaw rate it reached), from the start poses. A failed check restores the rows and their
+    controls `u` from `snap` ((len(st), SNAP_COLUMNS): a shift started in the tick has written
+    its cap into u) and does one sub-step, as the sub-step path would. `advance_car` runs n
+    sub-steps per call exactly as n calls of one, so a whole tick is bit-identical to sub-steps
+    with the broad phase between. path, turn: (len(st),) scratch. The car loop is a prange: parallel in a parallel
     caller (it is inlined), serial elsewhere."""
     m = nsub
     while m > 0:                 # the most sub-steps (nsub, halved) the prediction allows
@@ -818,9 +850,7 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
                 break
         m //= 2
     if m > 0:
-        for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
-            for i in range(a, b):
-                snap[i, c] = st[i, c]
+        _save_rows(st, u, a, b, snap)
     while True:                          # (one advance_car call site: each costs compile time)
         steps = max(m, 1)
         span = steps * dt
@@ -837,9 +867,7 @@ def whole_tick(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, nsub, dt, fuel_
             ok = ok and math.isfinite(st[i, S_X]) and math.isfinite(st[i, S_Y])
         if ok:
             return m
-        for c in range(st.shape[1]):     # the bound failed: back, and one sub-step
-            for i in range(a, b):
-                st[i, c] = snap[i, c]
+        _restore_rows(st, u, a, b, snap)     # the bound failed: back, and one sub-step
         m = 0
 
 
@@ -932,10 +960,7 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
         n_lazy += lazy[i]
     if n_lazy == 0 or n_lazy == n:
         return 0             # nothing to split: whole_tick decides
-    for c in range(st.shape[1]):
-        for i in range(n):
-            snap[i, c] = st[i, c]
-    u_snap = u.copy()        # a shift's cap writes the accel command into u
+    _save_rows(st, u, 0, n, snap)
     cache_snap = wall_cache.copy()
     k = k0
     while True:
@@ -952,12 +977,8 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
             break
     if not _advance_rows(st, lazy, np.int64(1), cp, curve_w, curve_t, pt, surf, tsc, u,
                          np.int64(k - k0), dt, fuel_on, path, turn):
-        for c in range(st.shape[1]):     # (plain loops: slice assignment compiles slowly)
-            for i in range(n):
-                st[i, c] = snap[i, c]
+        _restore_rows(st, u, 0, n, snap)
         for i in range(n):
-            for c in range(u.shape[1]):
-                u[i, c] = u_snap[i, c]
             for c in range(wall_cache.shape[1]):
                 wall_cache[i, c] = cache_snap[i, c]
         return 0

@@ -15,6 +15,7 @@ import numpy as np
 from madsim.facts import SCR_CPP_CLIENT_ANGLES_DEG, SCR_FIELDS
 from madsim.physics import layout as L
 from madsim.physics.kernel import NO_REFCOUNT
+from madsim.tracks.kernels import GEO_S0, locate_point
 from madsim.tracks.rays import cast_ray
 
 SCR_DEFAULT_ANGLES_DEG = SCR_CPP_CLIENT_ANGLES_DEG   # a suite's angles before set_angles
@@ -155,6 +156,44 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
             row[O_FOCUS + j] = -1.0
 
 
+@numba.njit(cache=True, inline="always")
+def _piece_at(geo, length, s):
+    """`Track.piece_at` of one distance s (m, any real): the last piece whose start GEO_S0 is
+    at most s wrapped into [0, L), clipped to the table (a NaN s gives the last piece)."""
+    s = s % length
+    npieces = geo.shape[0]
+    if s != s:
+        return npieces - 1
+    lo, hi = 0, npieces               # first piece starting after s: searchsorted(side="right")
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if geo[mid, GEO_S0] <= s:
+            lo = mid + 1
+        else:
+            hi = mid
+    return min(max(lo - 1, 0), npieces - 1)
+
+
+@numba.njit(cache=True, **NO_REFCOUNT)
+def focus_kernel(cars, st, due, requested, geo, length, runs, piece_run, half_width, max_range, flat):
+    """flat[k, O_FOCUS:O_FOCUS + 5] = the five focus rays of car cars[k] where due[k] (bool
+    (N,)): 1 deg apart around its requested angle requested[cars[k]] (deg, SCR sense), m, as
+    `Track.rangefinders` casts them (the piece walk from the piece at the car's S_S, the run of
+    the piece at the located s), bit for bit. Rows not due are left alone. Allocates nothing."""
+    for k in range(cars.shape[0]):
+        if not due[k]:
+            continue
+        i = cars[k]
+        x, y, yaw = st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW]
+        s, _, _ = locate_point(geo, length, _piece_at(geo, length, st[i, L.S_S]), x, y)
+        run = piece_run[_piece_at(geo, length, s)]
+        centre = requested[i]
+        for j in range(5):
+            h = yaw - math.radians(centre + (j - 2.0))
+            flat[k, O_FOCUS + j] = cast_ray(runs, half_width, run, x, y, math.cos(h), math.sin(h),
+                                            max_range)
+
+
 def wrap_angle(a):
     """Wrap radians to (-pi, pi]."""
     a = np.asarray(a, dtype=np.float64)
@@ -256,6 +295,7 @@ class SensorSuite:
         self._all_active = np.ones(n, dtype=np.bool_)
         track = world.track
         self._track_args = (track.geo, track.runs, track.piece_run, track.width / 2)
+        self._length = float(track.length)
         self.reset()
 
     def reset(self) -> None:
@@ -300,14 +340,9 @@ class SensorSuite:
         """The frame of `sensor_kernel`'s rows `flat` (N, 79) of `cars`: focus readings where
         `due` (bool (N,) from FocusState.due, or None) and noise if the suite is noisy."""
         if due is not None:
-            w = self.world
-            st = w.state
-            for j in np.flatnonzero(due):
-                i = cars[j]
-                centre = self.focus.requested_deg[i]
-                flat[j, O_FOCUS:O_FOCUS + 5] = w.track.rangefinders(
-                    st[i:i + 1, L.S_X], st[i:i + 1, L.S_Y], st[i:i + 1, L.S_YAW], centre + np.arange(-2.0, 3.0),
-                    s_hint=st[i:i + 1, L.S_S], max_range_m=SENSOR_RANGE_M)[0]
+            geo, runs, piece_run, half = self._track_args
+            focus_kernel(cars, self.world.state, due, self.focus.requested_deg, geo, self._length,
+                         runs, piece_run, half, SENSOR_RANGE_M, flat)
         frame = SensorFrame(flat, cars)
         if self.noisy:
             apply_noise(frame, self.rng)

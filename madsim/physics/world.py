@@ -105,7 +105,9 @@ class World:
                                              cp[:, L.C_IZZ].copy(), **kw)
             self._piece_i = np.zeros(n, dtype=np.int64)
             self._near = np.zeros(1, dtype=np.int64)
-            self._snap = np.zeros_like(self.state)       # whole-tick scratch (contact_kernels.whole_tick)
+            # whole-tick scratch (contact_kernels.whole_tick): state and controls, the state's order
+            order = "F" if np.isfortran(self.state) else "C"
+            self._snap = np.zeros((n, world_tick.SNAP_COLUMNS), order=order)
             self._path, self._turn = np.zeros(n), np.zeros(n)
             st = self.state
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))

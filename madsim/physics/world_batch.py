@@ -34,17 +34,17 @@ from madsim.physics import kernel
 from madsim.physics import layout as L
 from madsim.physics.sensors import (
     N_VALUES,
-    O_FOCUS,
     O_TPOS,
     SCR_DEFAULT_ANGLES_DEG,
     SENSOR_RANGE_M,
     FocusState,
     SensorFrame,
     apply_noise,
+    focus_kernel,
 )
 from madsim.physics.tables import car_table, piece_table
 from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available
-from madsim.physics.contact_kernels import N_PRM
+from madsim.physics.contact_kernels import N_PRM, SNAP_COLUMNS
 from madsim.physics.world_batch_kernels import (
     advance_slots,
     advance_slots_parallel,
@@ -104,7 +104,7 @@ class WorldBatch:
         self._curve_t = np.zeros((c, 1))
         self._piece = np.zeros(c, dtype=np.int64)
         # whole-tick scratch (contact_kernels.whole_tick), C order: a car's row in 10 cache lines
-        self._snap = np.zeros(self.state.shape)
+        self._snap = np.zeros((c, SNAP_COLUMNS))
         self._path, self._turn = np.zeros(c), np.zeros(c)
         angles = np.asarray(angles_deg, dtype=np.float64)
         if angles.shape != (19,):
@@ -370,14 +370,10 @@ class WorldBatch:
         st = self.state[rows]
         if focus is not None and st[0, L.S_TIME] >= focus.earliest_s:
             local = self._local[:flat.shape[0]]
-            due = np.nonzero(focus.due(local, st[:, L.S_TIME], np.abs(flat[:, O_TPOS]) <= 1.0))[0]
+            due = focus.due(local, st[:, L.S_TIME], np.abs(flat[:, O_TPOS]) <= 1.0)
             track = self._slot_kind[slot].world.track
-            for j in due:
-                centre = focus.requested_deg[j]
-                flat[j, O_FOCUS:O_FOCUS + 5] = track.rangefinders(
-                    st[j:j + 1, L.S_X], st[j:j + 1, L.S_Y], st[j:j + 1, L.S_YAW],
-                    centre + np.arange(-2.0, 3.0), s_hint=st[j:j + 1, L.S_S],
-                    max_range_m=SENSOR_RANGE_M)[0]
+            focus_kernel(local, st, due, focus.requested_deg, track.geo, float(track.length),
+                         track.runs, track.piece_run, track.width / 2, SENSOR_RANGE_M, flat)
         rng = self._noise_rng[slot]
         if rng is not None:
             apply_noise(SensorFrame(flat, self._local[:flat.shape[0]]), rng)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from madsim.physics.contact_kernels import advance_until_near
+from madsim.physics.contact_kernels import SNAP_COLUMNS, advance_until_near
 from madsim.physics.kernel import check_controls, slipstream
 from madsim.physics.layout import S_DIST, S_LAPS
 

@@ -218,3 +218,37 @@ def test_sensor_rows_bit_identical_to_the_allocating_kernel():
         assert flat[1, O_OPP:O_OPP + 36].min() < 10.0
         h.update(np.ascontiguousarray(flat).tobytes())
     assert h.hexdigest() == PINNED_DIGEST
+
+
+def test_focus_kernel_equals_track_rangefinders_bit_for_bit():
+    # the compiled focus readings cast as Track.rangefinders does (hinted piece walk, the run of
+    # the located piece, numpy's radians): random poses on and near piece joins, requests
+    # anywhere in [-90, 90] deg, S_S off by up to a piece's worth; rows not due are untouched
+    from madsim.physics.sensors import O_FOCUS, SENSOR_RANGE_M, focus_kernel
+    rng = np.random.default_rng(3)
+    for name in ("g-track-1", "e-track-4", "wheel-2"):
+        road = load_track(name)
+        n = 64
+        st = np.zeros((n, L.N_STATE))
+        starts = road.pieces[:, 1]                       # s0 of every piece
+        s = np.where(rng.random(n) < 0.5, rng.choice(starts, n) + rng.uniform(-1e-9, 1e-9, n),
+                     rng.uniform(0.0, road.length, n)) % road.length
+        lat = rng.uniform(-0.95, 0.95, n) * road.width / 2
+        x, y, _, heading = road.pose(s, lat)
+        st[:, L.S_X], st[:, L.S_Y] = x, y
+        st[:, L.S_YAW] = heading + rng.uniform(-0.5, 0.5, n)
+        st[:, L.S_S] = (s + rng.uniform(-3.0, 3.0, n)) % road.length
+        requested = rng.uniform(-90.0, 90.0, n)
+        due = rng.random(n) < 0.8
+        cars = np.arange(n, dtype=np.int64)
+        flat = np.full((n, 79), 7.0)
+        focus_kernel(cars, st, due, requested, road.geo, float(road.length), road.runs,
+                     road.piece_run, road.width / 2, SENSOR_RANGE_M, flat)
+        for k in range(n):
+            if not due[k]:
+                assert np.all(flat[k] == 7.0)
+                continue
+            want = road.rangefinders(st[k:k + 1, L.S_X], st[k:k + 1, L.S_Y], st[k:k + 1, L.S_YAW],
+                                     requested[k] + np.arange(-2.0, 3.0), s_hint=st[k:k + 1, L.S_S],
+                                     max_range_m=SENSOR_RANGE_M)[0]
+            assert flat[k, O_FOCUS:O_FOCUS + 5].tobytes() == want.tobytes(), (name, k)

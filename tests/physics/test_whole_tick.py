@@ -137,7 +137,7 @@ def test_open_road_takes_whole_ticks():
     # a lone car on the speedway's straight: the last tick went in one call (the whole-tick
     # scratch holds the tick's start state, written only when the prediction passed)
     w, before = _drive("madsim-speedway", 1, None, 30)
-    assert np.array_equal(w._snap, before)
+    assert np.array_equal(w._snap[:, :L.N_STATE], before)
     assert w._solver.stats["consults"] == 0
 
 
@@ -182,6 +182,41 @@ def test_split_tick_undoes_a_lazy_car_that_went_farther_than_predicted(oval):
         cols[0], cols[1], cols[2], w._piece_i, bp, w._near, w._snap, np.full(n, 1e-3),
         np.full(n, 1e-3))
     assert k == 0
-    assert np.array_equal(w._snap, before[0])     # it split: the start state was kept
+    assert np.array_equal(w._snap[:, :L.N_STATE], before[0])   # it split: the start kept
+    assert np.array_equal(w._snap[:, L.N_STATE:], before[1])
     assert np.array_equal(w.state, before[0]) and np.array_equal(u, before[1])
     assert np.array_equal(bp[4], before[2])
+
+
+def test_whole_tick_undo_restores_the_controls_a_shift_capped(oval):
+    # a lone car whose yaw rate (20 rad/s) is beyond what the prediction assumes (capped at
+    # YAW_RATE_MAX), with a wall clearance the predicted turn fits and the real one does not: the
+    # whole tick runs, fails its check and is given back. Its shift (gear 2 -> 3) started at the
+    # 1st sub-step and capped the accel command from the 2nd on; the retried sub-step must run
+    # on the tick's own controls, as the sub-step path's first sub-step does
+    w = World(oval, [load_car("madsim-sedan")], np.random.default_rng(0), contact=True)
+    w.reset(np.array([[100.0, 0.0, 20.0]]), gears=2)
+    w.step(np.array([[0.0, 0.3, 0.0, 2.0, 0.0]]), substeps=1)
+    st = w.state
+    st[0, L.S_R] = 20.0
+    bp = w._solver.broad_phase_args
+    cars, prm, wall_cache = bp[2], bp[3], bp[4]
+    nsub, span = 10, 10 * W.DT
+    v = math.hypot(st[0, L.S_VXG], st[0, L.S_VYG])
+    path = span * (v + contact_kernels.PREDICT_ACCEL * span) + contact_kernels.WHOLE_EPS_M
+    turn = span * W.kernel.YAW_RATE_MAX + contact_kernels.WHOLE_EPS_M
+    wall_cache[0, :3] = st[0, L.S_X], st[0, L.S_Y], st[0, L.S_YAW]
+    wall_cache[0, 3] = cars[0, C_GAIN] * path + cars[0, C_RAD] * turn + 1e-3
+    assert path < prm[P_MOVE_CAP]
+    u = np.array([[0.0, 0.8, 0.0, 3.0, 0.0]])
+    ref_st, ref_u = st.copy(), u.copy()
+    _advance_car(ref_st, 0, w._cp, w._curve_w, w._curve_t, w._pt, w._surf, w._tsc, ref_u, 1, W.DT,
+                 False)                                   # the sub-step path's 1st sub-step
+    k = contact_kernels.whole_tick_rows(st, np.int64(0), np.int64(1), w._cp, w._curve_w,
+                                        w._curve_t, w._pt, w._surf, w._tsc, u, nsub, W.DT, False,
+                                        *bp[2:8], w._snap, w._path, w._turn)
+    assert k == 1
+    assert w._snap[0, L.S_GEAR] == 2.0      # the whole tick was tried (its start kept) ...
+    assert ref_st[0, L.S_GEAR] == 3.0 and ref_u[0, L.U_ACCEL] == 0.8    # ... the shift began
+    assert np.array_equal(st, ref_st)       # main: the retried sub-step ran on accel 0.1
+    assert np.array_equal(u, ref_u)
