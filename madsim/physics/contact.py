@@ -68,15 +68,15 @@ Damage comes in whole points per hit: TORCS adds the int of each barrier, pit-wa
 hit (`contact_kernels._whole_points`), so a car resting against a wall gains none.
 
 Differences from TORCS, on purpose: a wall direction responds once per step (TORCS once per
-corner, with stale corner velocities); cars are separated fully, not by at most 5 cm; walls
-are pymunk segments, so the side of a box hits a convex wall corner (TORCS tests corners only), with TORCS's exact corner test as the
-safety net; the barrier normal is the lateral direction at the contact point (TORCS: per track
-segment, normal to the chord of its outermost side, so on a curve it is off by up to half a
-segment's angle and turns in steps). Boxes are centred on (x, y) (TORCS's CG offset in the
-body is ignored). pymunk is 2-D: contacts between cars far apart along the track, and barrier
-contacts whose car point is well inside the car's own barrier lines, are ignored (bridges); pit
-walls are not told apart by level, and their height is not used. Cars with a non-finite pose
-are ignored.
+corner, with stale corner velocities); cars are separated fully, not by at most 5 cm; walls are
+pymunk segments, so the side of a box hits a convex wall corner (TORCS tests corners only),
+with TORCS's exact corner test as the safety net; the barrier normal is the lateral direction
+at the contact point (TORCS: per track segment, normal to the chord of its outermost side, so
+on a curve it is off by up to half a segment's angle and turns in steps). Boxes are centred on
+(x, y) (TORCS's CG offset in the body is ignored). pymunk is 2-D: contacts between cars far
+apart along the track, and barrier contacts whose car point is well inside the car's own
+barrier lines, are ignored (bridges); pit walls are not told apart by level, and their height
+is not used. Cars with a non-finite pose are ignored.
 """
 
 from __future__ import annotations
