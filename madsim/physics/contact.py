@@ -64,17 +64,19 @@ integrates. The car-car impulse is the physical one (r x n lever arms): momentum
 and, with e <= 1, kinetic energy is not created. TORCS's code uses r . n there, which does not
 conserve energy; we do not copy that.
 
-Differences from TORCS, on purpose: damage is a float (TORCS truncates each hit to an int); a
-wall direction responds once per step (TORCS once per corner, with stale corner velocities);
-cars are separated fully, not by at most 5 cm; walls are pymunk segments, so the side of a box
-hits a convex wall corner (TORCS tests corners only), with TORCS's exact corner test as the
-safety net; the barrier normal is the lateral direction at the contact point (TORCS: per track
-segment, normal to the chord of its outermost side, so on a curve it is off by up to half a
-segment's angle and turns in steps). Boxes are centred on (x, y) (TORCS's CG offset in the
-body is ignored). pymunk is 2-D: contacts between cars far apart along the track, and barrier
-contacts whose car point is well inside the car's own barrier lines, are ignored (bridges); pit
-walls are not told apart by level, and their height is not used. Cars with a non-finite pose
-are ignored.
+Damage comes in whole points per hit: TORCS adds the int of each barrier, pit-wall and car-car
+hit (`contact_kernels._whole_points`), so a car resting against a wall gains none.
+
+Differences from TORCS, on purpose: a wall direction responds once per step (TORCS once per
+corner, with stale corner velocities); cars are separated fully, not by at most 5 cm; walls are
+pymunk segments, so the side of a box hits a convex wall corner (TORCS tests corners only),
+with TORCS's exact corner test as the safety net; the barrier normal is the lateral direction
+at the contact point (TORCS: per track segment, normal to the chord of its outermost side, so
+on a curve it is off by up to half a segment's angle and turns in steps). Boxes are centred on
+(x, y) (TORCS's CG offset in the body is ignored). pymunk is 2-D: contacts between cars far
+apart along the track, and barrier contacts whose car point is well inside the car's own
+barrier lines, are ignored (bridges); pit walls are not told apart by level, and their height
+is not used. Cars with a non-finite pose are ignored.
 """
 
 from __future__ import annotations

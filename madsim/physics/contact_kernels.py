@@ -31,6 +31,9 @@ PIT_WALL_DAMAGE_K = 2e-5    # pit walls: damage = CAR_DAMAGE_PER_NS x this x j^2
 MAT_PIT_WALL = -1           # "surface index" of the pit walls' material body
 PIT_CAP_COS = 0.7           # a pit-wall contact normal this close to the track direction is a cap's
 PIT_CAP_REACH_M = 0.5       # ... and is kept only this close to an end of the wall
+# Every hit adds its damage as a whole number of points, the fraction dropped (TORCS 1.3.7 adds
+# `(int)` of each barrier, pit-wall and car-car hit's damage: `_whole_points`). So a car
+# resting against a wall, which hits it at a few cm/s every step, gains no damage.
 
 # --- solver tuning ----------------------------------------------------------------------------
 SLOP_M = 1e-3               # extra separation beyond the measured penetration
@@ -419,6 +422,12 @@ def _point_excess(geo, bar, hint, px, py):
     return -n - b, (slope * ca - sa) * k, (slope * sa + ca) * k
 
 
+@numba.njit(cache=True, inline="always")
+def _whole_points(dmg):
+    """One hit's damage as TORCS adds it: the fraction dropped (dmg >= 0; NaN stays NaN)."""
+    return np.floor(dmg)
+
+
 @numba.njit(cache=True)
 def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
     """TORCS barrier rule (car spec 4.12 steps 2-6) for car i at point (px, py), wall normal
@@ -434,7 +443,8 @@ def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
     w[i] -= (nx * rx + ny * ry) * kf / WALL_YAW_SCALE
     w[i] = min(max(w[i], -WALL_YAW_MAX), WALL_YAW_MAX)
     if vn < 0.0:
-        damage[i] += mat[2] * (0.5 * (cosa * vcn) ** 2 + 0.005 * abs(1.0 - cosa) * speed) * prm[P_SKILL]
+        damage[i] += _whole_points(mat[2] * (0.5 * (cosa * vcn) ** 2 + 0.005 * abs(1.0 - cosa) * speed)
+                                   * prm[P_SKILL])
         vx[i] -= nx * vn * mat[1]
         vy[i] -= ny * vn * mat[1]
 
@@ -477,7 +487,7 @@ def _pit_wall_response(i, nx, ny, px, py, x, y, yaw, vx, vy, w, cars, prm, damag
     c, s = math.cos(yaw[i]), math.sin(yaw[i])
     ang = math.atan2(-rx * s + ry * c, rx * c + ry * s)
     factor = FRONTAL_FACTOR if abs(ang) < FRONTAL_HALF_ANGLE else 1.0
-    damage[i] += CAR_DAMAGE_PER_NS * PIT_WALL_DAMAGE_K * jn * jn * factor * prm[P_SKILL]
+    damage[i] += _whole_points(CAR_DAMAGE_PER_NS * PIT_WALL_DAMAGE_K * jn * jn * factor * prm[P_SKILL])
 
 
 @numba.njit(cache=True)
@@ -503,7 +513,7 @@ def _car_response(i, j, nx, ny, px, py, x, y, yaw, vx, vy, w, cars, prm, damage)
         c, s = math.cos(yaw[m]), math.sin(yaw[m])
         ang = math.atan2(-rx * s + ry * c, rx * c + ry * s)
         factor = FRONTAL_FACTOR if abs(ang) < FRONTAL_HALF_ANGLE else 1.0
-        damage[m] += CAR_DAMAGE_PER_NS * jn * factor * prm[P_SKILL]
+        damage[m] += _whole_points(CAR_DAMAGE_PER_NS * jn * factor * prm[P_SKILL])
     return jn
 
 
