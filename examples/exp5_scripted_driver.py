@@ -33,25 +33,30 @@ import yaml
 from madsim.experiments.evaluate import evaluate_single
 from madsim.experiments.registry import SCENARIO_DIR
 
-LANE_M = 1.2            # |n| of the lane aimed at beside a parked car (m; the road is +-2.5 m)
-OVERSHOOT = 4.0         # aim at target + OVERSHOOT x (target - n) ...
-AIM_MAX_M = 2.3         # ... within +-AIM_MAX_M (m)
-SPOT_TOL_M = 0.4        # a car within this of a parking spot's n may be parked there (m)
-PARKED_M = 1.25         # |n| of the parking spots (m, the scenario's +-0.25 of the 10 m road)
-SEEN_AHEAD_M = 35.0     # cars farther ahead than this are ignored (m)
-CLOSE_M = 9.0           # a car in the own path closer than this: crawl (m)
-NEXT_M = 2.0            # a car this far ahead of the own car (m, centres) is the next one
-BESIDE_M = 4.6          # ... less far ahead and less than this behind: beside (m)
-CLEAR_M = 2.3           # lateral distance kept to a car beside (m, centres)
-SLOW_M = 30.0           # change sides at SLOW_SPEED when the next car is this close (m)
+LANE_M = 0.9            # |n| of the lane driven beside a parked car (m, centre line 0): the
+                        # spots are 1.125-1.375 m out and the cars 1.94 m wide, so it clears
+                        # them, and every spot lies on a known side of the own heading line
+CLEAR_M = 2.0           # lateral distance (centres, m) kept to a car beside
+PATH_M = 1.6            # a car ahead less than this to the side (centres, m) is in the own path
+BESIDE_M = 4.6          # a car less than this behind and less than NEXT_M ahead is beside (m)
+NEXT_M = 5.0            # the next car: the nearest at least this far ahead (m) ...
+SEEN_AHEAD_M = 40.0     # ... and less than this (m)
+SLOW_M = 25.0           # change sides at SLOW_SPEED when the next car is this close (m)
 SLOW_SPEED = 0.5        # of the target speed
+FOLLOW_M = (6.0, 16.0)  # speed from 0 to the target over this gap to a car in the own path (m)
+STOP_M = 5.0            # brake fully closer than this to a car in the own path (m)
+START_M = 15.0          # below START_KMH, wait while a car is less than this ahead (m): at the
+START_KMH = 3.0         # start the traffic pulls away and crosses the road before parking
+OVERSHOOT = 1.5         # aim at target + OVERSHOOT x (target - n) ...
+AIM_MAX_M = 2.3         # ... within +-AIM_MAX_M (m): the T-S PID turns in proportion to the error
 
 
-def scripted_policy(columns: dict, half_width_m: float, limit: float):
+def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: float = LANE_M):
     """Batch policy obs (n, d) -> T-S actions (n, 2) for the exp5 observation layout.
 
     columns: {field: first column} of the observation; half_width_m: half the physical road
-    width (trackPos = n / half_width_m); limit: the track limit (action 1 = trackPos limit)."""
+    width (trackPos = n / half_width_m); limit: the track limit (action 1 = trackPos limit);
+    lane_m: |n| of the lane driven beside a parked car (m)."""
     k = np.arange(36)
     lo = np.radians(-180.0 + 10.0 * k)          # sector edges, clockwise (right) positive
     hi = lo + np.radians(10.0)
@@ -62,40 +67,40 @@ def scripted_policy(columns: dict, half_width_m: float, limit: float):
         opp = obs[:, columns["opponents"]:columns["opponents"] + 36] * 200.0
         # bearing from the track axis (clockwise +): sector bearing + the car's yaw to the right
         b_lo, b_hi = lo[None, :] + angle[:, None], hi[None, :] + angle[:, None]
-        ahead = opp * np.cos(0.5 * (b_lo + b_hi))             # m along the road
-        # the car's n lies between the two edges' lateral positions (right of the heading: -)
-        n_a = n_own[:, None] - opp * np.sin(b_lo)
-        n_b = n_own[:, None] - opp * np.sin(b_hi)
-        n_min, n_max = np.minimum(n_a, n_b), np.maximum(n_a, n_b)
-        rows = np.arange(len(obs))
+        b_mid = 0.5 * (b_lo + b_hi)
+        ahead = opp * np.cos(b_mid)                           # m along the road
+        mid = n_own[:, None] - opp * np.sin(b_mid)            # m, the car's n (+- half a sector)
         valid = opp < 199.0
-        # the next car: the nearest at least NEXT_M ahead; beside: within a car length
+        rows = np.arange(len(obs))
         nxt = np.where(valid & (ahead >= NEXT_M) & (ahead < SEEN_AHEAD_M), ahead, np.inf)
         j = np.argmin(nxt, axis=1)
         any_next = np.isfinite(nxt[rows, j])
-        c_min, c_max, c_ahead = n_min[rows, j], n_max[rows, j], nxt[rows, j]
-        # is it consistent with the left spot, the right spot?
-        left_ok = (c_max > PARKED_M - SPOT_TOL_M) & (c_min < PARKED_M + SPOT_TOL_M)
-        right_ok = (c_max > -PARKED_M - SPOT_TOL_M) & (c_min < -PARKED_M + SPOT_TOL_M)
-        centre = 0.5 * (c_min + c_max)
-        guess = -np.sign(centre) * LANE_M                               # away from the middle
-        target = np.where(left_ok & right_ok, guess,
-                          np.where(left_ok, -LANE_M, np.where(right_ok, LANE_M, guess)))
-        # nothing ahead: stay on the own side of the road
-        target = np.where(any_next, target, np.sign(n_own) * LANE_M)
+        # which side of the own line along the road: sector entirely left (right) of it, else
+        # the sector's middle; with |n| <= lane_m every parking spot is off that line
+        left = np.where(b_hi[rows, j] <= 0.0, True,
+                        np.where(b_lo[rows, j] >= 0.0, False, b_mid[rows, j] < 0.0))
+        side = np.where(left, 1.0, -1.0)                      # +1: the next car is to the left
+        target = np.where(any_next, -side * lane_m, np.sign(n_own) * lane_m)
         # a car beside: keep clear of it whatever the next car asks
         beside = valid & (ahead > -BESIDE_M) & (ahead < NEXT_M)
-        mid = 0.5 * (n_min + n_max)
         left_of_me = beside & (mid > n_own[:, None])
-        right_of_me = beside & (mid <= n_own[:, None])
         cap = np.min(np.where(left_of_me, mid - CLEAR_M, np.inf), axis=1)
-        floor = np.max(np.where(right_of_me, mid + CLEAR_M, -np.inf), axis=1)
+        floor = np.max(np.where(beside & ~left_of_me, mid + CLEAR_M, -np.inf), axis=1)
         target = np.minimum(np.maximum(target, floor), cap)
-        # slow down to change sides before the next car, and behind a car in the own path
+        # slow down to change sides before the next car, crawl behind a car in the own path
+        c_ahead, c_mid = nxt[rows, j], mid[rows, j]
         crossing = any_next & (np.sign(target) != np.sign(n_own)) & (c_ahead < SLOW_M)
-        in_path = any_next & (c_ahead < CLOSE_M) & (np.abs(centre - n_own) < 1.9)
-        speed = np.where(in_path, 0.1, np.where(crossing, SLOW_SPEED, 1.0))
-        # aim beyond the lane while far from it: the T-S PID turns in proportion to the error
+        # follow a car in the own path unless the target lane is clear of it (then steer away)
+        in_path = valid & (ahead > 0.0) & (np.abs(mid - n_own[:, None]) < PATH_M)
+        stays = np.abs(mid - target[:, None]) < CLEAR_M
+        gap = np.min(np.where(in_path & stays, ahead, np.inf), axis=1)
+        follow = np.clip((gap - FOLLOW_M[0]) / (FOLLOW_M[1] - FOLLOW_M[0]), 0.0, 1.0)
+        gap = np.min(np.where(in_path, ahead, np.inf), axis=1)
+        follow = np.where(gap < STOP_M, -1.0, follow)
+        speed = np.minimum(follow, np.where(crossing, SLOW_SPEED, 1.0))
+        near = np.min(np.where(valid & (ahead > 0.0) & ~in_path, opp, np.inf), axis=1)
+        slow = obs[:, columns["speedX"]] * 50.0 < START_KMH
+        speed = np.where(slow & (near < START_M), -1.0, speed)
         aim = np.clip(target + OVERSHOOT * (target - n_own), -AIM_MAX_M, AIM_MAX_M)
         lane = np.clip(aim / half_width_m / limit, -1.0, 1.0)
         return np.stack([lane, speed], axis=1).astype(np.float32)
@@ -109,10 +114,19 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--reverse-traffic", action="store_true",
                     help="reverse the scenario's traffic entries (first entry: the nearest spot)")
+    ap.add_argument("--spot-lane", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                    help="parking lanes [LOW, HIGH] / [-HIGH, -LOW] (trackPos of the full road) "
+                         "instead of the scenario's")
+    ap.add_argument("--lane-m", type=float, default=LANE_M,
+                    help=f"|n| of the lane driven beside a parked car (m, default {LANE_M})")
     args = ap.parse_args()
     base = yaml.safe_load((SCENARIO_DIR / "exp5.yml").read_text())
     if args.reverse_traffic:
         base["traffic"] = base["traffic"][::-1]
+    if args.spot_lane:
+        low, high = args.spot_lane
+        for t in base["traffic"]:
+            t["parking_lane"] = [low, high] if t["parking_lane"][0] > 0 else [-high, -low]
     fields = base["agents"][0]["observation"]["fields"]
     widths = {"track": 19, "opponents": 36}
     columns, col = {}, 0
@@ -120,7 +134,7 @@ def main() -> None:
         columns[name] = col
         col += widths.get(name, 1)
     limit = float(base["server"]["track_limits"][1])
-    policy = scripted_policy(columns, half_width_m=5.0, limit=limit)   # Aalborg: 10 m wide
+    policy = scripted_policy(columns, half_width_m=5.0, limit=limit, lane_m=args.lane_m)
     print("cars | success | how the episodes end (dones: count) | mean lap fraction | wall s")
     for n in args.counts:
         cfg = copy.deepcopy(base)
