@@ -33,9 +33,8 @@ import yaml
 from madsim.experiments.evaluate import evaluate_single
 from madsim.experiments.registry import SCENARIO_DIR
 
-LANE_M = 0.9            # |n| of the lane driven beside a parked car (m, centre line 0): the
-                        # spots are 1.125-1.375 m out and the cars 1.94 m wide, so it clears
-                        # them, and every spot lies on a known side of the own heading line
+HALF_WIDTHS_M = 0.96 + 0.97   # half the learner's width (car1-stock1) + half a traffic car's (m)
+LANE_MARGIN_M = 0.2     # the lane beside a parked car clears it by this (m)
 CLEAR_M = 2.0           # lateral distance (centres, m) kept to a car beside
 PATH_M = 1.6            # a car ahead less than this to the side (centres, m) is in the own path
 BESIDE_M = 4.6          # a car less than this behind and less than NEXT_M ahead is beside (m)
@@ -47,16 +46,17 @@ FOLLOW_M = (6.0, 16.0)  # speed from 0 to the target over this gap to a car in t
 STOP_M = 5.0            # brake fully closer than this to a car in the own path (m)
 START_M = 15.0          # below START_KMH, wait while a car is less than this ahead (m): at the
 START_KMH = 3.0         # start the traffic pulls away and crosses the road before parking
-OVERSHOOT = 1.5         # aim at target + OVERSHOOT x (target - n) ...
-AIM_MAX_M = 2.3         # ... within +-AIM_MAX_M (m): the T-S PID turns in proportion to the error
+OVERSHOOT = 3.0         # aim at target + OVERSHOOT x (target - n) ...
+AIM_MAX_M = 2.45         # ... within +-AIM_MAX_M (m): the T-S PID turns in proportion to the error
 
 
-def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: float = LANE_M):
+def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: float):
     """Batch policy obs (n, d) -> T-S actions (n, 2) for the exp5 observation layout.
 
     columns: {field: first column} of the observation; half_width_m: half the physical road
     width (trackPos = n / half_width_m); limit: the track limit (action 1 = trackPos limit);
-    lane_m: |n| of the lane driven beside a parked car (m)."""
+    lane_m: |n| of the lane driven beside a parked car (m): it must clear the innermost spot and
+    lie inside it, so that every spot is on a known side of the own line along the road."""
     k = np.arange(36)
     lo = np.radians(-180.0 + 10.0 * k)          # sector edges, clockwise (right) positive
     hi = lo + np.radians(10.0)
@@ -117,8 +117,9 @@ def main() -> None:
     ap.add_argument("--spot-lane", type=float, nargs=2, metavar=("LOW", "HIGH"),
                     help="parking lanes [LOW, HIGH] / [-HIGH, -LOW] (trackPos of the full road) "
                          "instead of the scenario's")
-    ap.add_argument("--lane-m", type=float, default=LANE_M,
-                    help=f"|n| of the lane driven beside a parked car (m, default {LANE_M})")
+    ap.add_argument("--lane-m", type=float,
+                    help="|n| of the lane driven beside a parked car (m; default: clears the "
+                         f"innermost spot by {LANE_MARGIN_M} m)")
     args = ap.parse_args()
     base = yaml.safe_load((SCENARIO_DIR / "exp5.yml").read_text())
     if args.reverse_traffic:
@@ -134,7 +135,11 @@ def main() -> None:
         columns[name] = col
         col += widths.get(name, 1)
     limit = float(base["server"]["track_limits"][1])
-    policy = scripted_policy(columns, half_width_m=5.0, limit=limit, lane_m=args.lane_m)
+    half_width_m = 5.0                                                  # Aalborg: 10 m wide
+    inner_m = min(min(abs(x) for x in t["parking_lane"]) for t in base["traffic"]) * half_width_m
+    lane_m = args.lane_m if args.lane_m is not None else HALF_WIDTHS_M - inner_m + LANE_MARGIN_M
+    print(f"parking spots from {inner_m:.2f} m out; lane beside them at +-{lane_m:.2f} m")
+    policy = scripted_policy(columns, half_width_m=half_width_m, limit=limit, lane_m=lane_m)
     print("cars | success | how the episodes end (dones: count) | mean lap fraction | wall s")
     for n in args.counts:
         cfg = copy.deepcopy(base)
