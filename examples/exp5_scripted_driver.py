@@ -108,6 +108,28 @@ def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: fl
     return policy
 
 
+def lane_change_m(cfg: dict, speed: float, from_m: float, to_m: float) -> float:
+    """Metres of road the scenario's T-S learner needs to move from n = from_m to to_m (m, left
+    +) at `speed` (normalised T-S speed action), aiming at the road's edge beyond to_m, on the
+    empty straight after 6 s in the start lane."""
+    from madsim.envs.madras_env import MadrasEnv
+
+    cfg = copy.deepcopy(cfg)
+    cfg["server"]["traffic_count"] = [0, 0]
+    cfg["agents"][0]["dones"] = ["TimeOut"]
+    env = MadrasEnv(cfg)
+    env.reset(seed=0)
+    world, limit_m = env.core.backend.world, 5.0 * float(cfg["server"]["track_limits"][1])
+    for _ in range(60):
+        env.step(np.array([from_m / limit_m, speed], dtype=np.float32))
+    s0 = float(world.s[-1])
+    for _ in range(300):
+        env.step(np.array([math.copysign(0.98, to_m - from_m), speed], dtype=np.float32))
+        if (world.n[-1] - to_m) * math.copysign(1.0, to_m - from_m) >= 0.0:
+            break
+    return float(world.s[-1]) - s0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--counts", type=int, nargs="+", default=list(range(3, 10)))
@@ -139,6 +161,11 @@ def main() -> None:
     inner_m = min(min(abs(x) for x in t["parking_lane"]) for t in base["traffic"]) * half_width_m
     lane_m = args.lane_m if args.lane_m is not None else HALF_WIDTHS_M - inner_m + LANE_MARGIN_M
     print(f"parking spots from {inner_m:.2f} m out; lane beside them at +-{lane_m:.2f} m")
+    need_m = HALF_WIDTHS_M - inner_m                 # |n| clearing the innermost spot exactly
+    for speed in (1.0, 0.5):
+        print(f"T-S lane change from n = {-need_m:.2f} to {need_m:.2f} m at "
+              f"{speed * 50:.0f} km/h (aiming at the road's edge): "
+              f"{lane_change_m(base, speed, -need_m, need_m):.1f} m of road")
     policy = scripted_policy(columns, half_width_m=half_width_m, limit=limit, lane_m=lane_m)
     print("cars | success | how the episodes end (dones: count) | mean lap fraction | wall s")
     for n in args.counts:
