@@ -2,21 +2,27 @@
 
 The driver sees only what the PPO agent sees (the scenario's observation: angle, track,
 trackPos, speedX/Y/Z, opponents, with gym_torcs's scaling) and answers T-S actions
-[track position, speed], both normalised to [-1, 1]. Rule: find the nearest car ahead in the
-opponents sensor (36 sectors of 10 degrees), bound its track position from the sector's two
-edges, and drive in the half of the road away from it (the parked cars stand at +-1.25 m);
-while its side cannot be told yet, drive on the centre line, where the sector edge at 0
-degrees tells left from right; slow down when a car is close ahead in the own path.
+[track position, speed], both normalised to [-1, 1]. Rule:
+- it drives in one of two lanes at +-lane_m, just clear of the innermost parking spot; from
+  there every spot lies on a known side of its line along the road, so the sector of the next
+  car ahead (opponents: 36 sectors of 10 degrees, turned by `angle` onto the road) tells its
+  side, and the driver takes the other lane;
+- it keeps clear of a car beside it until that car is a car length behind, then changes lanes
+  aiming at the road's edge (the T-S PID turns in proportion to the lane error), at half the
+  target speed;
+- it follows a car in its own path, brakes 5 m behind it, and waits at the start until the
+  traffic has pulled away.
 
 It is evaluated as the experiment evaluates PPO (madsim.experiments.evaluate.evaluate_single:
 100 episodes per traffic count, seeds 1,000,000 + k, the scenario's time limit):
 
     PYTHONPATH=. python examples/exp5_scripted_driver.py               # 3..9 cars, 100 episodes
     PYTHONPATH=. python examples/exp5_scripted_driver.py --counts 4 5 --episodes 20
-    PYTHONPATH=. python examples/exp5_scripted_driver.py --reverse-traffic   # entries reversed
+    PYTHONPATH=. python examples/exp5_scripted_driver.py --spot-lane 0.225 0.275   # +-1.25 m
+    PYTHONPATH=. python examples/exp5_scripted_driver.py --reverse-traffic   # the old order
 
-Prints, per traffic count, the success rate (Rank1 with no Collision) and how the episodes
-ended.
+Prints the distance of road the T-S learner needs to change lanes, then per traffic count the
+success rate (Rank1 with no Collision) and how the episodes ended.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import time
 import numpy as np
 import yaml
 
-from madsim.experiments.evaluate import evaluate_single
+from madsim.experiments.evaluate import evaluate_single, with_distance_field
 from madsim.experiments.registry import SCENARIO_DIR
 
 HALF_WIDTHS_M = 0.96 + 0.97   # half the learner's width (car1-stock1) + half a traffic car's (m)
@@ -135,7 +141,7 @@ def main() -> None:
     ap.add_argument("--counts", type=int, nargs="+", default=list(range(3, 10)))
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--reverse-traffic", action="store_true",
-                    help="reverse the scenario's traffic entries (first entry: the nearest spot)")
+                    help="reverse the traffic entries (nearest spot first: the traffic jams)")
     ap.add_argument("--spot-lane", type=float, nargs=2, metavar=("LOW", "HIGH"),
                     help="parking lanes [LOW, HIGH] / [-HIGH, -LOW] (trackPos of the full road) "
                          "instead of the scenario's")
@@ -150,12 +156,7 @@ def main() -> None:
         low, high = args.spot_lane
         for t in base["traffic"]:
             t["parking_lane"] = [low, high] if t["parking_lane"][0] > 0 else [-high, -low]
-    fields = base["agents"][0]["observation"]["fields"]
-    widths = {"track": 19, "opponents": 36}
-    columns, col = {}, 0
-    for name in fields:
-        columns[name] = col
-        col += widths.get(name, 1)
+    _, _, columns = with_distance_field(base)            # {field: first column}
     limit = float(base["server"]["track_limits"][1])
     half_width_m = 5.0                                                  # Aalborg: 10 m wide
     inner_m = min(min(abs(x) for x in t["parking_lane"]) for t in base["traffic"]) * half_width_m
