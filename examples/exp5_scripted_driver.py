@@ -53,7 +53,7 @@ STOP_M = 5.0            # brake fully closer than this to a car in the own path 
 START_M = 15.0          # below START_KMH, wait while a car is less than this ahead (m): at the
 START_KMH = 3.0         # start the traffic pulls away and crosses the road before parking
 OVERSHOOT = 3.0         # aim at target + OVERSHOOT x (target - n) ...
-AIM_MAX_M = 2.45         # ... within +-AIM_MAX_M (m): the T-S PID turns in proportion to the error
+AIM_MAX_M = 2.45        # ... within +-AIM_MAX_M (m): the T-S PID turns in proportion to the error
 
 
 def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: float):
@@ -93,7 +93,7 @@ def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: fl
         cap = np.min(np.where(left_of_me, mid - CLEAR_M, np.inf), axis=1)
         floor = np.max(np.where(beside & ~left_of_me, mid + CLEAR_M, -np.inf), axis=1)
         target = np.minimum(np.maximum(target, floor), cap)
-        # slow down to change sides before the next car, crawl behind a car in the own path
+        # change sides at SLOW_SPEED
         c_ahead, c_mid = nxt[rows, j], mid[rows, j]
         crossing = any_next & (np.sign(target) != np.sign(n_own)) & (c_ahead < SLOW_M)
         # follow a car in the own path unless the target lane is clear of it (then steer away)
@@ -114,10 +114,10 @@ def scripted_policy(columns: dict, half_width_m: float, limit: float, lane_m: fl
     return policy
 
 
-def lane_change_m(cfg: dict, speed: float, from_m: float, to_m: float) -> float:
-    """Metres of road the scenario's T-S learner needs to move from n = from_m to to_m (m, left
-    +) at `speed` (normalised T-S speed action), aiming at the road's edge beyond to_m, on the
-    empty straight after 6 s in the start lane."""
+def lane_change_m(cfg: dict, speed: float, from_m: float, to_m: float) -> tuple[float, float]:
+    """(metres of road, n where it started) the scenario's T-S learner needs to move from the
+    lane from_m to n = to_m (m, left +) at `speed` (normalised T-S speed action), aiming at the
+    road's edge beyond to_m, on the empty straight after 6 s in the lane from_m."""
     from madsim.envs.madras_env import MadrasEnv
 
     cfg = copy.deepcopy(cfg)
@@ -128,12 +128,12 @@ def lane_change_m(cfg: dict, speed: float, from_m: float, to_m: float) -> float:
     world, limit_m = env.core.backend.world, 5.0 * float(cfg["server"]["track_limits"][1])
     for _ in range(60):
         env.step(np.array([from_m / limit_m, speed], dtype=np.float32))
-    s0 = float(world.s[-1])
+    s0, n0 = float(world.s[-1]), float(world.n[-1])
     for _ in range(300):
         env.step(np.array([math.copysign(0.98, to_m - from_m), speed], dtype=np.float32))
         if (world.n[-1] - to_m) * math.copysign(1.0, to_m - from_m) >= 0.0:
             break
-    return float(world.s[-1]) - s0
+    return float(world.s[-1]) - s0, n0
 
 
 def main() -> None:
@@ -164,9 +164,9 @@ def main() -> None:
     print(f"parking spots from {inner_m:.2f} m out; lane beside them at +-{lane_m:.2f} m")
     need_m = HALF_WIDTHS_M - inner_m                 # |n| clearing the innermost spot exactly
     for speed in (1.0, 0.5):
-        print(f"T-S lane change from n = {-need_m:.2f} to {need_m:.2f} m at "
-              f"{speed * 50:.0f} km/h (aiming at the road's edge): "
-              f"{lane_change_m(base, speed, -need_m, need_m):.1f} m of road")
+        road_m, n0 = lane_change_m(base, speed, -need_m, need_m)
+        print(f"T-S lane change from n = {n0:.2f} to {need_m:.2f} m at {speed * 50:.0f} km/h "
+              f"(aiming at the road's edge): {road_m:.1f} m of road")
     policy = scripted_policy(columns, half_width_m=half_width_m, limit=limit, lane_m=lane_m)
     print("cars | success | how the episodes end (dones: count) | mean lap fraction | wall s")
     for n in args.counts:
