@@ -136,3 +136,32 @@ def test_exp6_curriculum_counts_env_steps():
     """The runner places stage 2 at 80% of training in env steps (paper: iterations 240/300)."""
     cfg = yaml.safe_load((SCENARIO_DIR / "exp6.yml").read_text())
     assert cfg["curriculum"]["unit"] == "steps" and len(cfg["curriculum"]["stages"]) == 2
+
+
+def test_exp5_traffic_reaches_its_parking_spots():
+    """Exp5: entry i starts in grid slot i (slot 0 in front) and the entries run from the
+    farthest spot to the nearest (MADRaS's order), so every car parks at its own spot on
+    Aalborg's straight. Listed nearest-first, the cars queued 5 m apart behind the first
+    parked one on alternating sides, a wall across the road."""
+    from madsim.envs.madras_env import MadrasEnv
+    from madsim.tracks import load_track
+
+    cfg = yaml.safe_load((SCENARIO_DIR / "exp5.yml").read_text())
+    track = load_track("aalborg")
+    cfg["server"]["traffic_count"] = [5, 5]
+    cfg["agents"][0]["dones"] = ["TimeOut"]
+    env = MadrasEnv(cfg)
+    env.reset(seed=3)
+    for _ in range(200):                          # 20 s; the learner brakes at its grid slot
+        env.step([0.0, -1.0])
+    world, length = env.core.backend.world, env.core.track.length
+    s_m = (world.s[:5] + length / 2.0) % length - length / 2.0     # m past the start line
+    spots = [b.distance for b in env.core.behaviours]
+    lanes = [b.lane * track.width / 2.0 for b in env.core.behaviours]
+    assert all(b.parked for b in env.core.behaviours)
+    assert max(abs(s - spot) for s, spot in zip(s_m, spots)) < 1.0
+    assert max(abs(n - lane) for n, lane in zip(world.n[:5], lanes)) < 0.3
+    highs = [t["parking_distance"][1] for t in cfg["traffic"]]
+    assert highs == sorted(highs, reverse=True)
+    assert all(track.curvature_at(s) == 0.0 for t in cfg["traffic"]
+               for s in (t["parking_distance"][0], t["parking_distance"][1]))
