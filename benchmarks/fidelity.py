@@ -105,9 +105,12 @@ def controls(sense, prev_gear: int, mode: str, target_kmh: float, up_kmh: list[f
     return steer, accel, brake, gear
 
 
-def replay(path: Path, schedule: str = "torcs", until_s: float | None = None) -> Run:
-    """Drive madsim like the trace's TORCS run and record both (up to race time `until_s` if
-    given: both records are cut there)."""
+def replay(path: Path, schedule: str = "torcs", until_s: float | None = None, watch=None,
+           until_message: int | None = None) -> Run:
+    """Drive madsim like the trace's TORCS run and record both (up to race time `until_s` or
+    racing message `until_message` if given: both records are cut there). `watch(message,
+    world, frame)`, if given, is called at each racing message (0 = the first) before the
+    car acts on it (benchmarks/slide_window.py reads madsim's state there)."""
     from madsim.cars import load_car
     from madsim.physics.schedule import FIRST_MESSAGE_TIME, make_clock
     from madsim.physics.sensors import SensorSuite
@@ -154,8 +157,14 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None) ->
                 f.trackPos[0], f.z[0], *f.wheelSpinVel[0], f.rpm[0], f.gear[0], f.speedZ[0])
         for c, v in zip(COLUMNS, vals):
             rec[c].append(float(v))
+        message = len(rec["curLapTime"]) - 1
+        if watch is not None:
+            watch(message, world, f)
         if until_s is not None and race_t >= until_s:
             run.madsim_end = f"{until_s:g} s"
+            break
+        if until_message is not None and message >= until_message:
+            run.madsim_end = f"message {message}"
             break
         if mode == "full" and race_t >= STRAIGHT_STOP_S:
             run.madsim_end = "16 s"
@@ -172,7 +181,7 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None) ->
         u[0] = (steer, accel, brake, gear, 0.0)
         world.step(u, clock.substeps())
     run.madsim = {c: np.array(v) for c, v in rec.items()}
-    if until_s is not None:
+    if until_s is not None or until_message is not None:
         keep = np.arange(run.torcs["curLapTime"].shape[0]) < run.madsim["curLapTime"].shape[0]
         run.torcs = {c: v[keep] for c, v in run.torcs.items()}
     run.seconds = time.perf_counter() - t0
