@@ -12,7 +12,8 @@ Tests that start an SCR server in another process (`madsim serve`, `ScrServer` t
 with a bounded wait) assume the race kernels load from numba's disk cache in about a second.
 On a fresh install (CI's clean clone) the first server compiles them instead (~25-45 s on a
 2-core machine), which would eat that test's wait. So when the session holds such a test,
-the kernels are compiled here once, into the disk cache the servers read.
+the kernels are compiled here once, into the disk cache the servers read, after collection
+(outside any test's timeout).
 """
 
 from __future__ import annotations
@@ -20,8 +21,6 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-
-import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -33,11 +32,13 @@ SERVER_TEST_FILES = ("test_traffic_udp.py", "test_bad_input.py", "test_interrupt
                      "test_scenarios.py", "test_commands_as_written.py", "test_docs.py", "test_standin.py")
 
 
-@pytest.fixture(scope="session", autouse=True)
-def _race_kernels_compiled(request):
-    if not any(item.path.name in SERVER_TEST_FILES for item in request.session.items):
+def pytest_collection_finish(session):
+    """Compile (or load) the race kernels once the session's tests are known, before the first
+    test starts: outside every test's timeout, which a cold compile on a busy machine can eat."""
+    if session.config.option.collectonly:
         return
-    exec(WARM_UP, {})
+    if any(item.path.name in SERVER_TEST_FILES for item in session.items):
+        exec(WARM_UP, {})
 
 
 WARM_UP = """
