@@ -16,7 +16,11 @@ What runs, and how (nothing is left out without a reason listed here):
   `.learn(512)`; `python examples/rllib_bottleneck.py` runs as written up to train_rllib, whose
   one-iteration run with Ray is tests/train/test_rllib.py's (Ray takes ~30 s to start);
   `madsim experiment run ... --budget short|full` -> `--budget smoke` (the short budget takes
-  6-18 min per experiment, full hours), an absolute `--out` moved into the folder;
+  6-18 min per experiment, full hours), an absolute `--out` moved into the folder; a later
+  `experiment run` that is then the same computation as an earlier one (same experiment,
+  budget, seed and options but `--out`: docs/paper-results.md's short and full runs of exp1
+  both become exp1 at smoke, seed 0) is parsed by the CLI and gets the earlier run's folder at
+  its `--out`, not a third identical run (same seed, same table: tests/experiments/test_runs.py);
 - not run, for the stated reason (asserted to be exactly these lines): the two set-up commands
   (`python3 -m venv ...`: CI's `.ci/run` runs them in a fresh environment), `pip install ...`
   (the tests reuse one install), `ray start ...` and `--address auto` (need a Ray cluster).
@@ -31,6 +35,7 @@ import io
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import threading
@@ -100,6 +105,24 @@ def _budget(argv: list[str], base: int) -> list[str]:
     return argv
 
 
+def _same_experiment_as_before(argv: list[str], experiments: dict) -> bool:
+    """For `madsim experiment run`: True, with the earlier run's folder copied to this one's
+    `--out`, if an earlier command in `experiments` ({its parsed options but out: out folder},
+    filled here) was the same computation; else False (the command is then run)."""
+    if argv[1:3] != ["experiment", "run"]:
+        return False
+    from madsim.cli_parsers import build_parser
+
+    options = vars(build_parser().parse_args(argv[1:]))
+    out = options.pop("out")
+    key = repr(sorted((k, v) for k, v in options.items() if k != "func"))
+    if key in experiments:
+        shutil.copytree(experiments[key], out)
+        return True
+    experiments[key] = out
+    return False
+
+
 def _main(main, argv: list[str]):
     try:
         return main(argv[1:])
@@ -144,7 +167,7 @@ def test_every_readme_and_docs_command_runs_as_written(folder, monkeypatch):
     monkeypatch.chdir(folder)
     monkeypatch.setenv("HOME", str(folder))
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
-    ran, skipped_torcs, failures = [], [], []
+    ran, skipped_torcs, failures, experiments = [], [], [], {}
     for doc in DOCS:
         background: list[tuple[str, threading.Thread, list]] = []
         for line in _commands(doc):
@@ -168,6 +191,8 @@ def test_every_readme_and_docs_command_runs_as_written(folder, monkeypatch):
                     continue
                 argv = _budget(argv, base)
                 ran.append(part)
+                if _same_experiment_as_before(argv, experiments):
+                    continue
                 if in_background:
                     result: list = []
                     thread = threading.Thread(target=lambda a=argv, r=result: r.append(_main(main, a)), daemon=True)

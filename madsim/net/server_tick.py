@@ -7,8 +7,8 @@ The stages are the engine's own kernels (`codec_kernels.decode_stock`, `world_ti
 the in-process doors (World.step, SensorSuite.frame, protocol.encode_sensor_rows). Whatever a
 stage cannot finish exactly stops the call at that stage and is done by the Python path of the
 same stage (`ServerTick._python_stage`), which then goes on: a datagram in no stock layout, a
-control that is not finite, something near a car (the pymunk narrow phase), a focus reading
-due, sensor noise or the start countdown, a value the compiled encoder leaves to the exact one.
+control that is not finite, something near a car (the pymunk narrow phase), sensor noise or
+the start countdown, a value the compiled encoder leaves to the exact one.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from madsim.net.array_table import (address_table, b1_vector, f8_matrix, f8_vect
 from madsim.net.codec_kernels import decode_stock, encode_rows
 from madsim.physics.layout import S_DAMAGE, S_LAPS, S_TIME
 from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR, O_TPOS,
-                                    SENSOR_OFFSETS, focus_due, focus_request, sensor_kernel)
+                                    SENSOR_OFFSETS, focus_due, focus_kernel, focus_request,
+                                    sensor_kernel)
 from madsim.physics.world_tick import step_world
 
 DECODE, STEP, SENSE, ENCODE, DONE = 0, 1, 2, 3, 4
@@ -83,9 +84,9 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
       tick's copy of controls (a shift's throttle cap writes into it); steps[0] = its
       answer. Stops on a non-finite control (steps[0] < 0: nothing was changed) or something
       near (after sub-step steps[0]: World.finish_tick goes on from there).
-    SENSE: `sensor_kernel` into flat (N, 79) and the focus cooldowns (`focus_due`); stops when
-      a focus reading is due (due (N,) bool), and always when not `plain` (noise or the
-      countdown to apply).
+    SENSE: `sensor_kernel` into flat (N, 79), the focus cooldowns (`focus_due`) and the focus
+      readings due (`focus_kernel`); stops when not `plain` (noise or the countdown to apply;
+      due (N,) bool says which cars get a focus reading).
     ENCODE: `codec_kernels.encode_rows` into out, out_len; stops when a row is left to the
       exact encoder (out_len -1).
     Then DONE, with EVENT when the lap counts differ from laps_seen (N,), a damage exceeds
@@ -158,10 +159,14 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
                 time_s[k] = st[cars[k], S_TIME]
                 on_track[k] = abs(flat[k, O_TPOS]) <= 1.0
             count = focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due)
-        if count > 0 or not plain:
+        if not plain:                           # noise or the countdown: Python finishes the frame
             if count == 0:
                 due[:] = False
             return SENSE
+        if count > 0:                           # the focus readings due, as SensorSuite.finish_frame
+            focus_kernel(cars, st, due, requested, readonly(f8_matrix(t, GEO)), length,
+                         readonly(f8_matrix(t, RUNS)), readonly(i8_vector(t, PIECE_RUN)), half_width,
+                         max_range, flat)
     if first <= ENCODE < stop:
         out_len = i8_vector(t, OUT_LEN)
         encode_rows(f8_matrix(t, FLAT), b1_vector(t, IS_INT), readonly(u1_vector(t, LIT)), i8_vector(t, LIT_END),

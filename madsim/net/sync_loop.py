@@ -97,8 +97,9 @@ def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen,
                 return ticks
             inlen[i] = n
             now = _now_ns(timespec)                     # the next car's wait begins
-        status = server_tick(0, DONE, True, True, nsub, st, snap, table, dt, fuel_on, length, half_width,
-                             max_range, max_bytes, max_damage)
+        # typed as ServerTick.run passes them (int64, bool), not as literals: one compile
+        status = server_tick(np.int64(0), np.int64(DONE), np.bool_(True), np.bool_(True), nsub, st, snap,
+                             table, dt, fuel_on, length, half_width, max_range, max_bytes, max_damage)
         ticks += 1
         scratch[3] += 1
         if status != DONE:

@@ -15,7 +15,7 @@ import numpy as np
 from madsim.facts import SCR_CPP_CLIENT_ANGLES_DEG, SCR_FIELDS
 from madsim.physics import layout as L
 from madsim.physics.kernel import NO_REFCOUNT
-from madsim.tracks.kernels import GEO_S0, locate_point
+from madsim.tracks.kernels import locate_point, piece_at
 from madsim.tracks.rays import cast_ray
 
 SCR_DEFAULT_ANGLES_DEG = SCR_CPP_CLIENT_ANGLES_DEG   # a suite's angles before set_angles
@@ -156,24 +156,6 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
             row[O_FOCUS + j] = -1.0
 
 
-@numba.njit(cache=True, inline="always")
-def _piece_at(geo, length, s):
-    """`Track.piece_at` of one distance s (m, any real): the last piece whose start GEO_S0 is
-    at most s wrapped into [0, L), clipped to the table (a NaN s gives the last piece)."""
-    s = s % length
-    npieces = geo.shape[0]
-    if s != s:
-        return npieces - 1
-    lo, hi = 0, npieces               # first piece starting after s: searchsorted(side="right")
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if geo[mid, GEO_S0] <= s:
-            lo = mid + 1
-        else:
-            hi = mid
-    return min(max(lo - 1, 0), npieces - 1)
-
-
 @numba.njit(cache=True, **NO_REFCOUNT)
 def focus_kernel(cars, st, due, requested, geo, length, runs, piece_run, half_width, max_range, flat):
     """flat[k, O_FOCUS:O_FOCUS + 5] = the five focus rays of car cars[k] where due[k] (bool
@@ -185,8 +167,8 @@ def focus_kernel(cars, st, due, requested, geo, length, runs, piece_run, half_wi
             continue
         i = cars[k]
         x, y, yaw = st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW]
-        s, _, _ = locate_point(geo, length, _piece_at(geo, length, st[i, L.S_S]), x, y)
-        run = piece_run[_piece_at(geo, length, s)]
+        s, _, _ = locate_point(geo, length, piece_at(geo, length, st[i, L.S_S]), x, y)
+        run = piece_run[piece_at(geo, length, s)]
         centre = requested[i]
         for j in range(5):
             h = yaw - math.radians(centre + (j - 2.0))

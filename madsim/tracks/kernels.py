@@ -32,6 +32,33 @@ def wrap_angle(a):
 
 
 @numba.njit(inline="always", **_JIT)
+def piece_at(geo, length, s):
+    """The piece holding distance s (m, any real): the last piece whose start GEO_S0 is at most
+    s wrapped into [0, L), clipped to the table (a NaN s gives the last piece); numpy's
+    searchsorted(side="right") - 1, as one binary search. The one piece lookup of the track
+    (`Track.piece_at`), the rays and the focus sensor."""
+    s = s % length
+    npieces = geo.shape[0]
+    if s != s:
+        return npieces - 1
+    lo, hi = 0, npieces               # the first piece starting after s
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if geo[mid, GEO_S0] <= s:
+            lo = mid + 1
+        else:
+            hi = mid
+    return min(max(lo - 1, 0), npieces - 1)
+
+
+@numba.njit(**_JIT)
+def pieces_at(geo, length, s, out):
+    """out[k] = piece_at(geo, length, s[k]) for s (K,) float64, out (K,) int64."""
+    for k in range(s.shape[0]):
+        out[k] = piece_at(geo, length, s[k])
+
+
+@numba.njit(inline="always", **_JIT)
 def piece_local(geo, p, x, y):
     """(q, n, cos h, sin h) of point (x, y) in piece p: centre-line distance from the piece start
     (m), lateral offset (m, left +) and the tangent direction at the projection."""

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from madsim.tracks.build import COL, STRAIGHT
+from madsim.tracks.kernels import piece_at
 
 RUN_KIND, RUN_X0, RUN_Y0, RUN_A0, RUN_LEN, RUN_R, RUN_CX, RUN_CY, RUN_ARC = range(9)
 RUN_C0, RUN_S0, RUN_C1, RUN_S1 = range(9, 13)
@@ -179,11 +180,13 @@ def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
 
 
 @numba.njit(cache=True)
-def rangefinders(runs, half_width, run_idx, px, py, yaw, angles_rad, max_range, out):
-    """Rays for many cars: out[k, a] = distance from car k along yaw - angles[a] (SCR angles,
-    positive clockwise) to the road edge; caller handles the |trackPos| > 1 sentinel."""
+def rangefinders(geo, length, runs, piece_run, half_width, s, px, py, yaw, angles_rad, max_range, out):
+    """Rays for many cars: out[k, a] = distance from car k at (px, py), located at s[k] (m), along
+    yaw - angles[a] (SCR angles, positive clockwise) to the road edge, walked from the run of
+    the piece at s[k] (`kernels.piece_at`, as the focus sensor); caller handles the
+    |trackPos| > 1 sentinel."""
     for k in range(px.shape[0]):
+        run = piece_run[piece_at(geo, length, s[k])]
         for a in range(angles_rad.shape[0]):
             h = yaw[k] - angles_rad[a]
-            out[k, a] = cast_ray(runs, half_width, run_idx[k], px[k], py[k], math.cos(h), math.sin(h),
-                                 max_range)
+            out[k, a] = cast_ray(runs, half_width, run, px[k], py[k], math.cos(h), math.sin(h), max_range)

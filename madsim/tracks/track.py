@@ -186,9 +186,10 @@ class Track:
 
     def piece_at(self, s) -> np.ndarray:
         """Index of the piece containing distance s (any real s, wrapped into [0, L))."""
-        s = np.mod(np.asarray(s, dtype=np.float64), self.length)
-        return np.clip(np.searchsorted(self.pieces[:, COL["s0"]], s, side="right") - 1,
-                       0, self.n_pieces - 1)
+        s = np.asarray(s, dtype=np.float64)
+        out = np.empty(s.shape, dtype=np.int64)
+        kernels.pieces_at(self._geo, self.length, np.ascontiguousarray(s.ravel()), out.reshape(-1))
+        return out[()]
 
     def _piece_frac(self, s):
         s = np.mod(np.asarray(s, dtype=np.float64), self.length)
@@ -343,7 +344,7 @@ class Track:
         s, _ = self.locate(x, y, s_hint=s_hint)
         angles = np.radians(np.asarray(angles_deg, dtype=np.float64))
         out = np.empty((x.shape[0], angles.shape[0]))
-        rays.rangefinders(self.runs, self.width / 2, self.piece_run[self.piece_at(s)],
+        rays.rangefinders(self._geo, self.length, self.runs, self.piece_run, self.width / 2, s,
                           np.ascontiguousarray(x), np.ascontiguousarray(y), np.ascontiguousarray(yaw),
                           angles, max_range_m, out)
         return out

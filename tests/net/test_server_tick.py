@@ -24,13 +24,19 @@ def answers(k: int) -> list[bytes]:
     return [car0, car1]
 
 
-def race(compiled: bool, noisy: bool) -> tuple[list[list[bytes]], object]:
+def race(compiled: bool, noisy: bool) -> tuple[list[list[bytes]], object, int]:
+    """The messages sent each tick (and whether the tick was the one compiled call), the World,
+    and how many focus readings the Python path (SensorSuite.finish_frame) made after the
+    countdown."""
     world = make_world_factory("madsim-oval", ["car1-trb1"], 2, fuel=True, damage=True)(3)
     suite = SensorSuite(world, noisy=noisy, rng=np.random.default_rng(1))
     inbox = np.zeros((2, RECV_BYTES), dtype=np.uint8)
     inlen = np.full(2, -1, dtype=np.int64)
     tick = ServerTick(world, suite, np.zeros((2, 5)), inbox, inlen, MAX_DAMAGE)
     tick.compiled = compiled and tick.compiled     # False: every stage in Python
+    finish, python_focus = suite.finish_frame, []
+    suite.finish_frame = lambda flat, cars, due: (python_focus.append(due is not None and int(np.sum(due)))
+                                                  or finish(flat, cars, due))
     sent = []
     status = tick.run(SENSE, DONE, False, 0, 2)
     for k in range(240):
@@ -39,14 +45,16 @@ def race(compiled: bool, noisy: bool) -> tuple[list[list[bytes]], object]:
             inbox[i, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
             inlen[i] = -1 if k == 70 and i == 1 else len(msg)     # car 1 silent once
         countdown = max(1 - k, 0)
+        if countdown == 0 and k == 1:
+            python_focus.clear()        # the countdown's frames are Python's (no focus shown)
         status = tick.run(DECODE, DONE, k >= 2, 10, countdown)
-    return sent, world
+    return sent, world, sum(python_focus)
 
 
 @pytest.mark.parametrize("noisy", [False, True])
 def test_the_compiled_tick_sends_the_bytes_of_the_python_path_of_every_stage(noisy):
-    compiled, world = race(True, noisy)
-    python, world_py = race(False, noisy)
+    compiled, world, focus_in_python = race(True, noisy)
+    python, world_py, _ = race(False, noisy)
     for k, (a, b) in enumerate(zip(compiled, python)):
         assert a[:2] == b[:2], f"state {k}"
     assert world._solver.stats["consults"] > 0               # the barrier was hit: contact ran
@@ -54,6 +62,10 @@ def test_the_compiled_tick_sends_the_bytes_of_the_python_path_of_every_stage(noi
     # the usual tick was the one compiled call, nothing left to Python; noise is drawn in Python
     whole = sum(a[2] for a in compiled)
     assert whole == 0 if noisy else whole > 100
+    # car 0 asks for focus every tick: one reading per simulated second, from the compiled call
+    # too (the Python path only where it adds the noise)
+    assert sum(P.decode_sensors(a[0])["focus"][0] != -1.0 for a in compiled) >= 4
+    assert focus_in_python >= 4 if noisy else focus_in_python == 0
     assert not any(b[2] for b in python)
 
 
