@@ -220,3 +220,68 @@ def test_whole_tick_undo_restores_the_controls_a_shift_capped(oval):
     assert ref_st[0, L.S_GEAR] == 3.0 and ref_u[0, L.U_ACCEL] == 0.8    # ... the shift began
     assert np.array_equal(st, ref_st)       # main: the retried sub-step ran on accel 0.1
     assert np.array_equal(u, ref_u)
+
+
+def _batch_and_world(track, n, place, slots=2):
+    """A WorldBatch of `slots` slots holding `place` (the last slot is compared) and a World
+    holding it too, both after one sub-step (the neighbour lists built)."""
+    from madsim.physics.world_batch import WorldBatch
+
+    car = load_car("madsim-sedan")
+    w = World(track, [car] * n, np.random.default_rng(0), contact=True)
+    w.reset(place)
+    batch = WorldBatch(slots, n)
+    for slot in range(slots):
+        batch.start(slot, ("split", n), track, [car] * n, place)
+    u = np.tile([0.0, 0.3, 0.0, 2.0, 0.0], (n, 1))
+    w.step(u, substeps=1)
+    batch.controls[:] = np.tile(u, (slots, 1))
+    batch.step(np.ones(slots, dtype=bool), substeps=1)
+    assert np.array_equal(batch.state[batch.rows(slots - 1)], w.state)
+    return batch, w
+
+
+def test_batch_slot_takes_a_split_tick_as_world_does(oval):
+    # a WorldBatch slot of five cars, two nose to tail and three clear of everything:
+    # world_batch_kernels.split_slot takes the whole tick (kpos 10, nothing near) and ends
+    # where World's split_tick ends (test_split_tick_steps_far_cars_in_one_call: where ten
+    # sub-steps with the broad phase after each end); the other slot is not touched
+    from madsim.physics.world_batch_kernels import split_slot
+
+    n = 5
+    batch, w = _batch_and_world(oval, n, _traffic_place(n))
+    other = batch.state[batch.rows(0)].copy()
+    u = np.tile([0.0, 0.6, 0.0, 2.0, 0.0], (n, 1))
+    cols = w._contact_cols
+    k = contact_kernels.split_tick(w.state, w._cp, w._curve_w, w._curve_t, w._pt, w._surf, w._tsc,
+                                   u.copy(), 0, 10, W.DT, False, cols[0], cols[1], cols[2],
+                                   w._piece_i, w._solver.broad_phase_args, w._near, w._snap,
+                                   w._path, w._turn)
+    batch._kpos[:] = 0
+    tables, contact = batch._slot_tables()
+    near = split_slot(1, batch.state, batch._cp, batch._curve_w, batch._curve_t, np.tile(u, (2, 1)),
+                      tables, batch._track, batch.offsets, batch.n_cars, batch._kpos, batch._near,
+                      batch._piece, 10, W.DT, False, batch._snap, batch._path, batch._turn, contact)
+    assert k == 10 and w._near[0] == 0
+    assert not near and batch._kpos[1] == 10 and batch._near[1] == 0
+    assert np.array_equal(batch.state[batch.rows(1)], w.state)
+    assert np.array_equal(batch._wall_cache[batch.rows(1)], w._solver.broad_phase_args[4])
+    assert np.array_equal(batch.state[batch.rows(0)], other)
+
+
+def test_batch_with_split_ticks_equals_world_over_a_drive(oval):
+    # the same group driven 150 ticks by a noisy lane keeper (bumps, split ticks, resolves):
+    # the batch's slot equals the World at every tick, bit for bit
+    n = 5
+    batch, w = _batch_and_world(oval, n, _traffic_place(n), slots=1)
+    rng = np.random.default_rng(3)
+    for _ in range(150):
+        ang = np.angle(np.exp(1j * (w.state[:, L.S_YAW] - w.state[:, L.S_THEAD])))
+        steer = np.clip(-2.0 * ang - 0.1 * w.state[:, L.S_N] + rng.normal(0.0, 0.3, n), -1, 1)
+        u = np.column_stack([steer, rng.uniform(0.5, 1.0, n), np.zeros(n),
+                             np.clip(1 + w.state[:, L.S_VX] // 12, 1, 5), np.zeros(n)])
+        w.step(u)
+        batch.controls[:] = u
+        batch.step(np.ones(1, dtype=bool))
+        assert np.array_equal(batch.state, w.state)
+    assert w.damage.sum() > 0          # the two bumped on the way
