@@ -929,23 +929,12 @@ def split_tick(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on
     car beyond reach (`tick_clear`'s tests), and each of its pairs with a near car is checked
     at every sub-step from its start pose less its path. So the broad phase could flag no
     lazy car and no pair of one and changes no cache for one whatever its pose on the way; it
-    sees the near cars where they are. Arguments as `advance_until_near`'s (every row of `st`
-    one car; `split_tick_rows` for rows a..b-1 of a bigger table)."""
-    return split_tick_rows(st, np.int64(0), np.int64(st.shape[0]), cp, curve_w, curve_t, pt,
-                           surf, tsc, u, k0, nsub, dt, fuel_on, x, y, yaw, piece, bp, near, snap,
-                           path, turn)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def split_tick_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x,
-                    y, yaw, piece, bp, near, snap, path, turn):
-    """`split_tick` for the cars in rows a..b-1 of `st`, `u`, `snap`, `path` and `turn` (the
-    batch's layout, `WorldBatch`): x, y, yaw, piece, bp and near[0] are theirs from car 0."""
+    sees the near cars where they are. Arguments as `advance_until_near`'s."""
     if nsub - k0 < 2:
         return 0
-    _predict_motion(st, a, b, (nsub - k0) * dt, path, turn)
-    return split_predicted_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt,
-                                fuel_on, x, y, yaw, piece, bp, near, snap, path[a:b], turn[a:b])
+    _predict_motion(st, 0, st.shape[0], (nsub - k0) * dt, path, turn)
+    return split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on, x, y,
+                           yaw, piece, bp, near, snap, path, turn)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -953,17 +942,7 @@ def split_predicted(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fu
                     piece, bp, near, snap, path, turn):
     """`split_tick` with each car's path (m) and turn (rad) over the rest of the tick predicted
     in path, turn (N,)."""
-    return split_predicted_rows(st, np.int64(0), np.int64(st.shape[0]), cp, curve_w, curve_t, pt,
-                                surf, tsc, u, k0, nsub, dt, fuel_on, x, y, yaw, piece, bp, near,
-                                snap, path, turn)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def split_predicted_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, k0, nsub, dt, fuel_on,
-                         x, y, yaw, piece, bp, near, snap, path, turn):
-    """`split_predicted` for rows a..b-1 (as `split_tick_rows`; path, turn (b - a,) from car
-    0)."""
-    n = b - a
+    n = st.shape[0]
     cars, prm, wall_cache, vref, pairs, meta = bp[2], bp[3], bp[4], bp[5], bp[6], bp[7]
     if meta[0] == 0:
         return 0
@@ -981,49 +960,48 @@ def split_predicted_rows(st, a, b, cp, curve_w, curve_t, pt, surf, tsc, u, k0, n
         n_lazy += lazy[i]
     if n_lazy == 0 or n_lazy == n:
         return 0             # nothing to split: whole_tick decides
-    _save_rows(st, u, a, b, snap)
+    _save_rows(st, u, 0, n, snap)
     cache_snap = wall_cache.copy()
     k = k0
     while True:
-        _advance_rows(st, a, lazy, np.int64(0), cp, curve_w, curve_t, pt, surf, tsc, u,
-                      np.int64(1), dt, fuel_on, path, turn)
+        _advance_rows(st, lazy, np.int64(0), cp, curve_w, curve_t, pt, surf, tsc, u, np.int64(1), dt,
+                      fuel_on, path, turn)
         k += 1
         if k == nsub or not _lazy_apart(x, y, cars, vref, pairs, meta, lazy, path):
             break
         for i in range(n):
-            piece[i] = int(st[a + i, S_PIECE])
+            piece[i] = int(st[i, S_PIECE])
         near[0] = _broad_phase(x, y, yaw, piece, bp[0], bp[1], cars, prm, wall_cache, vref, pairs,
                                meta, bp[8], bp[9])
         if near[0] != 0:
             break
-    if not _advance_rows(st, a, lazy, np.int64(1), cp, curve_w, curve_t, pt, surf, tsc, u,
+    if not _advance_rows(st, lazy, np.int64(1), cp, curve_w, curve_t, pt, surf, tsc, u,
                          np.int64(k - k0), dt, fuel_on, path, turn):
-        _restore_rows(st, u, a, b, snap)
+        _restore_rows(st, u, 0, n, snap)
         for i in range(n):
             for c in range(wall_cache.shape[1]):
                 wall_cache[i, c] = cache_snap[i, c]
         return 0
-    _near_after_rows(st, a, x, y, yaw, piece, bp, near)
+    _near_after_sub_step(st, x, y, yaw, piece, bp, near)
     return k - k0
 
 
 @numba.njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _advance_rows(st, a, lazy, group, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt, fuel_on,
-                  path, turn):
-    """`steps` sub-steps in one `advance_car` call for each car i (row a + i) with lazy[i] ==
-    (group == 1); True if each of them went at most path[i] m and turned at most turn[i] rad
-    (the kernel's bounds: its largest speed and yaw rate) and has a finite position. (group and
-    steps are int64 values, never literals: numba would compile a copy per literal.)"""
+def _advance_rows(st, lazy, group, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt, fuel_on, path,
+                  turn):
+    """`steps` sub-steps in one `advance_car` call for each car with lazy[i] == (group == 1);
+    True if each of them went at most path[i] m and turned at most turn[i] rad (the kernel's
+    bounds: its largest speed and yaw rate) and has a finite position. (group and steps are
+    int64 values, never literals: numba would compile a copy per literal.)"""
     ok = True
     span = steps * dt
     want = group == 1
-    for i in range(lazy.shape[0]):
+    for i in range(st.shape[0]):
         if lazy[i] == want:
-            r = a + i
-            v2_max, r_max = advance_car(st, r, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt,
+            v2_max, r_max = advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, u, steps, dt,
                                         fuel_on)
             ok = (ok and span * math.sqrt(v2_max) <= path[i] and span * r_max <= turn[i]
-                  and math.isfinite(st[r, S_X]) and math.isfinite(st[r, S_Y]))
+                  and math.isfinite(st[i, S_X]) and math.isfinite(st[i, S_Y]))
     return ok
 
 
@@ -1060,15 +1038,8 @@ def advance_until_near_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, u, k0, 
 
 @numba.njit(cache=True, inline="always")
 def _near_after_sub_step(st, x, y, yaw, piece, bp, near):
-    return _near_after_rows(st, 0, x, y, yaw, piece, bp, near)
-
-
-@numba.njit(cache=True, inline="always")
-def _near_after_rows(st, a, x, y, yaw, piece, bp, near):
-    """piece[i] = the piece of row a + i of `st`, then near[0] = the broad phase's answer on
-    those cars (bp: `ContactSolver.broad_phase_args`); True if not 0."""
-    for i in range(piece.shape[0]):
-        piece[i] = int(st[a + i, S_PIECE])
+    for i in range(st.shape[0]):
+        piece[i] = int(st[i, S_PIECE])
     near[0] = _broad_phase(x, y, yaw, piece, bp[0], bp[1], bp[2], bp[3], bp[4], bp[5], bp[6],
                            bp[7], bp[8], bp[9])
     return near[0] != 0

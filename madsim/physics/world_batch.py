@@ -142,7 +142,6 @@ class WorldBatch:
         self._meta = np.zeros((self.n_slots, 3), dtype=np.int64)
         self._flags = np.zeros(c, dtype=np.int8)
         self._slack = np.zeros(c)
-        self._split_at = np.full(self.n_slots, -1, dtype=np.int64)   # world_batch_kernels.split_slot
         self._noise_rng: list = [None] * self.n_slots
         self._noisy_slots = 0
         self._focus_state: list = [None] * self.n_slots
@@ -300,7 +299,11 @@ class WorldBatch:
                              f"{L.CONTROL_COLUMNS[col]} is {u[row, col]!r} (must be finite)")
         run = mask.copy()
         self._kpos[:] = 0
-        tables, contact = self._slot_tables()
+        tables = (self._pt.all, self._pt.off, self._surf.all, self._surf.off, self._tsc_all,
+                  self._n_geo)
+        contact = (self._geo_rows.all, self._geo_rows.off, self._bar.all, self._bar.off,
+                   self._box, self._prm, self._wall_cache, self._vref, self._pairs, self._pcap,
+                   self._meta, self._flags, self._slack)
         while True:
             self._advance(self.state, self._cp, self._curve_w, self._curve_t, u, tables,
                           self._track, self.offsets, self.n_cars, run, self._kpos, self._near,
@@ -317,16 +320,6 @@ class WorldBatch:
                 break
         race_positions(self.state, mask, self.offsets, self.n_cars, self.race_pos)
         self.sense(mask)
-
-    def _slot_tables(self) -> tuple[tuple, tuple]:
-        """(tables, contact): the stacked per-track tables and the broad-phase arrays as
-        `world_batch_kernels.advance_slots` takes them."""
-        tables = (self._pt.all, self._pt.off, self._surf.all, self._surf.off, self._tsc_all,
-                  self._n_geo)
-        contact = (self._geo_rows.all, self._geo_rows.off, self._bar.all, self._bar.off,
-                   self._box, self._prm, self._wall_cache, self._vref, self._pairs, self._pcap,
-                   self._meta, self._flags, self._slack, self._split_at)
-        return tables, contact
 
     def _resolve(self, slot: int) -> None:
         """World.finish_tick's contact resolve for one slot."""

@@ -27,12 +27,8 @@ from madsim.physics.contact_kernels import (
     CAR_REACH_M,
     P_MOVE_CAP,
     REBUILD_M,
-    SPLIT_MIN_CARS,
     _broad_phase,
-    _predict_motion,
     _wrap,
-    split_tick_rows,
-    tick_clear,
     whole_tick_rows,
 )
 from madsim.physics.sensors import sensor_kernel
@@ -40,22 +36,20 @@ from madsim.physics.world_tick import rank_rows
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always", **kernel.NO_REFCOUNT)
-def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits, nsub, dt,
+def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub, dt,
                  fuel_on, with_contact, snap, path, turn, contact):
     """World.step for slot e from sub-step kpos[e] (the rest at once where provably nothing is
     near): returns 0 when all nsub are done with nothing near (kpos[e] = nsub), 1 when the
-    broad phase must run now (kpos[e] = sub-steps done) or, with near[e] = SPLIT_ASK, when a
-    slot of `SPLIT_MIN_CARS` or more cannot take the rest of the tick whole and `split_slot`
-    should try it (as `World.step`'s `advance_until_near`). tables, contact: `WorldBatch`'s
+    broad phase must run now (kpos[e] = sub-steps done). tables, contact: `WorldBatch`'s
     stacked per-track tables and broad-phase arrays (see `advance_slots`)."""
     pt_all, pt_off, surf_all, surf_off, tsc_all, n_geo = tables
-    _, _, _, _, box, prm, wall_cache, vref, pairs, _, meta, flags, slack, split_at = contact
+    _, _, _, _, box, prm, wall_cache, vref, pairs, _, meta, flags, slack = contact
     a, b = off[e], off[e] + ncar[e]
     t = trk[e]
     pt, surf = pt_all[pt_off[t]:pt_off[t + 1]], surf_all[surf_off[t]:surf_off[t + 1]]
     tsc = tsc_all[t]
     k = kpos[e]
-    if k == 0 and split_at[e] != 0:      # (not again after a split declined at sub-step 0)
+    if k == 0:
         for i in range(a, b):
             hits[i] = False
         if 1 < b - a <= kernel.SLIP_ALL_PAIRS:   # World.step: from the poses at the tick's start
@@ -67,13 +61,6 @@ def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece
         return 0
     cars, wc, vr, pr, mt = box[a:b], wall_cache[a:b], vref[a:b], pairs[e], meta[e]
     while k < nsub:
-        if b - a >= SPLIT_MIN_CARS and nsub - k >= 2 and split_at[e] != k:
-            _predict_motion(st, a, b, (nsub - k) * dt, path, turn)
-            if not tick_clear(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], cars, prm[e], wc,
-                              vr, pr, mt, path[a:b], turn[a:b]):
-                kpos[e] = k
-                near[e] = SPLIT_ASK
-                return 1
         k += whole_tick_rows(st, a, b, cp, cw, ct, pt, surf, tsc, u, nsub - k, dt, fuel_on, cars,
                              prm[e], wc, vr, pr, mt, snap, path, turn)
         for i in range(a, b):
@@ -86,43 +73,12 @@ def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece
     return 0
 
 
-SPLIT_ASK = -1
-"""near[e] from `advance_slot`: slot e asks `split_slot` to try the rest of its tick (the broad
-phase's own answers are counts, never negative)."""
-
-
-@numba.njit(cache=True, error_model="numpy")
-def split_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, nsub, dt, fuel_on,
-               snap, path, turn, contact):
-    """`contact_kernels.split_tick_rows` for slot e from sub-step kpos[e] (it allocates: a
-    counted kernel). If it takes sub-steps, kpos[e] moves on and near[e] is the broad phase's
-    answer there; if it declines, split_at[e] = kpos[e] (the slot then goes whole or sub-step
-    by sub-step from there, `advance_slot`) and near[e] = 0. True if something is near."""
-    pt_all, pt_off, surf_all, surf_off, tsc_all, _ = tables
-    geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags, \
-        slack, split_at = contact
-    a, b = off[e], off[e] + ncar[e]
-    t = trk[e]
-    bp = (geo_all[geo_off[t]:geo_off[t + 1]], bar_all[bar_off[t]:bar_off[t + 1]], box[a:b], prm[e],
-          wall_cache[a:b], vref[a:b], pairs[e, :pcap[e]], meta[e], flags[a:b], slack[a:b])
-    done = split_tick_rows(st, a, b, cp, cw, ct, pt_all[pt_off[t]:pt_off[t + 1]],
-                           surf_all[surf_off[t]:surf_off[t + 1]], tsc_all[t], u, kpos[e], nsub, dt,
-                           fuel_on, st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
-                           bp, near[e:e + 1], snap, path, turn)
-    if done == 0:
-        split_at[e] = kpos[e]
-        near[e] = 0
-        return False
-    kpos[e] += done
-    return near[e] != 0
-
-
 @numba.njit(cache=True, error_model="numpy")
 def broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
     """The contact broad phase of slot e's cars (on its rows of the batch's broad-phase arrays,
     as `ContactSolver.broad_phase_args`); near[e] = its answer; True if not 0 (something near)."""
     geo_all, geo_off, bar_all, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags, \
-        slack, _ = contact
+        slack = contact
     a, b = off[e], off[e] + ncar[e]
     t = trk[e]
     near[e] = _broad_phase(st[a:b, L.S_X], st[a:b, L.S_Y], st[a:b, L.S_YAW], piece[a:b],
@@ -143,8 +99,8 @@ def advance_run(e0, e1, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, ne
     for e in range(e0, e1):
         if run[e]:
             near[e] = 0
-            if advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, hits,
-                            nsub, dt, fuel_on, with_contact, snap, path, turn, contact):
+            if advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits, nsub,
+                            dt, fuel_on, with_contact, snap, path, turn, contact):
                 return e
     return e1
 
@@ -158,21 +114,18 @@ def advance_slots(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, pi
     slot's tick is done (near[e] = 0). tables: (pt, pt_off, surf, surf_off, tsc, n_geo),
     per-track tables stacked (track t: rows off[t]:off[t + 1]; tsc row t; n_geo[t] pieces);
     contact: (geo, geo_off, bar, bar_off, box, prm, wall_cache, vref, pairs, pcap, meta, flags,
-    slack, split_at): ContactSolver.broad_phase_args of every slot (per track stacked, per car
-    rows as `st`, per slot rows e; pairs[e, :pcap[e]]) and `split_slot`'s per-slot scratch. Slots are independent: the order of their
+    slack): ContactSolver.broad_phase_args of every slot (per track stacked, per car rows as
+    `st`, per slot rows e; pairs[e, :pcap[e]]). Slots are independent: the order of their
     parts does not change a bit."""
     n = off.shape[0]
-    split_at = contact[13]
     for e in range(n):
-        split_at[e] = -1
         if run[e] and kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
             kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
     e = 0
     while e < n:
         e = advance_run(e, n, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece,
                         hits, nsub, dt, fuel_on, with_contact, snap, path, turn, contact)
-        if e < n and _counted_part(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near,
-                                   piece, nsub, dt, fuel_on, snap, path, turn, contact):
+        if e < n and broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
             e += 1                       # something near: Python resolves it, the slot waits
 
 
@@ -181,27 +134,14 @@ def advance_slots_parallel(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos,
                            hits, nsub, dt, fuel_on, with_contact, snap, path, turn, contact):
     """`advance_slots` with the slots shared among threads (independent: bit-identical)."""
     for e in numba.prange(off.shape[0]):
-        contact[13][e] = -1
         if run[e]:
             if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
                 kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
             while advance_run(e, e + 1, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos,
                               near, piece, hits, nsub, dt, fuel_on, with_contact, snap, path,
                               turn, contact) == e:
-                if _counted_part(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece,
-                                 nsub, dt, fuel_on, snap, path, turn, contact):
+                if broad_phase_slot(e, st, trk, off, ncar, near, piece, contact):
                     break
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _counted_part(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, nsub, dt,
-                  fuel_on, snap, path, turn, contact):
-    """What slot e asked `advance_run` for (a split tick if near[e] = SPLIT_ASK, else the broad
-    phase); True if something is near (Python resolves it, the slot waits)."""
-    if near[e] == SPLIT_ASK:
-        return split_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, near, piece, nsub,
-                          dt, fuel_on, snap, path, turn, contact)
-    return broad_phase_slot(e, st, trk, off, ncar, near, piece, contact)
 
 
 @numba.njit(cache=True, inline="always")
