@@ -156,7 +156,7 @@ C_WGZ = C_WGX + 2         # wing z (the car file's), m
 C_IXX = C_WGZ + 2         # roll inertia (dry mass), kg m^2
 C_IYY = C_IXX + 1         # pitch inertia (dry mass), kg m^2
 # sines and cosines of constant angles, formed once here instead of in every `advance_car` call
-# (`tables.car_trig`: the kernel's own math.sin / math.cos, the same bits)
+# (`kernel.car_trig`, called by `tables.car_table`: the kernel's own math.sin / math.cos)
 C_WGSIN = C_IYY + 1       # sin, cos of each wing angle (front, rear)
 C_WGCOS = C_WGSIN + 2
 C_TOESIN = C_WGCOS + 2    # sin, cos of each wheel's static toe (FR, FL, RR, RL)
