@@ -46,6 +46,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT, C_LOCK, C_MASS,
     C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
     C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
+    C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
     P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF,
@@ -511,6 +512,21 @@ def advance_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt
 
 
 @numba.njit(**_JIT, **NO_REFCOUNT)
+def car_trig(cp):
+    """cp's columns C_WGSIN, C_WGCOS (per wing) and C_TOESIN, C_TOECOS (per wheel) from the
+    angles C_WGANG and C_TOE (rad), rows of cars (N, N_CAR): `advance_car` reads them instead of
+    forming these constant sines and cosines at every call (4 libm sincos a call), with this
+    kernel's own math.sin / math.cos (the same bits; tests/physics/test_bit_identity.py)."""
+    for i in range(cp.shape[0]):
+        for k in range(2):
+            a = cp[i, C_WGANG + k]
+            cp[i, C_WGSIN + k], cp[i, C_WGCOS + k] = math.sin(a), math.cos(a)
+        for k in range(4):
+            a = cp[i, C_TOE + k]
+            cp[i, C_TOESIN + k], cp[i, C_TOECOS + k] = math.sin(a), math.cos(a)
+
+
+@numba.njit(**_JIT, **NO_REFCOUNT)
 def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, fuel_on):
     """`nsub` explicit sub-steps of car i: the dynamic bicycle model of car spec 5.2 with TORCS's
     engine, gearbox, tyre and aero rules. Controls must be finite (any range: clipped here).
@@ -552,8 +568,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     dragk = st[i, S_DRAGK]
     scx2 = cp[i, C_SCX2] * wear * dragk * dragk
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
-    sw0, cw0 = math.sin(cp[i, C_WGANG]), math.cos(cp[i, C_WGANG])             # wings (spec 4.7)
-    sw1, cw1 = math.sin(cp[i, C_WGANG + 1]), math.cos(cp[i, C_WGANG + 1])
+    sw0, cw0 = cp[i, C_WGSIN], cp[i, C_WGCOS]             # wings (spec 4.7), see `car_trig`
+    sw1, cw1 = cp[i, C_WGSIN + 1], cp[i, C_WGCOS + 1]
     kx0, kx1 = cp[i, C_WGKX] * wear, cp[i, C_WGKX + 1] * wear
     kz0, kz1 = cp[i, C_WGKZ], cp[i, C_WGKZ + 1]
     xw0, xw1, zw0, zw1 = cp[i, C_WGX], cp[i, C_WGX + 1], cp[i, C_WGZ], cp[i, C_WGZ + 1]
@@ -561,8 +577,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     rc_f, rc_r = cp[i, C_RC], cp[i, C_RC + 1]                 # roll-centre heights
     x0w, x1w, x2w, x3w = cp[i, C_WX], cp[i, C_WX + 1], cp[i, C_WX + 2], cp[i, C_WX + 3]
     toe0, toe1 = cp[i, C_TOE], cp[i, C_TOE + 1]               # static toe (spec 4.5), rad
-    cd2, sd2 = math.cos(cp[i, C_TOE + 2]), math.sin(cp[i, C_TOE + 2])
-    cd3, sd3 = math.cos(cp[i, C_TOE + 3]), math.sin(cp[i, C_TOE + 3])
+    cd2, sd2 = cp[i, C_TOECOS + 2], cp[i, C_TOESIN + 2]       # the rear wheels' (constant) heading
+    cd3, sd3 = cp[i, C_TOECOS + 3], cp[i, C_TOESIN + 3]
     # the four tyres as one loop over lanes (wheel k in lane k, on this call's stack): LLVM
     # vectorises it (SIMD) because its trip count is not a constant it could unroll first
     n_lanes = min(4, cp.shape[1])

@@ -71,3 +71,23 @@ def test_car_file_toe_reaches_the_kernel_per_wheel(need_torcs):
     np.testing.assert_allclose(np.degrees(car.toe), [0.0, 0.0, 0.3, -0.3], atol=1e-6)
     cp, _, _ = car_table([car], ["semi-pro"])
     np.testing.assert_array_equal(cp[0, L.C_TOE:L.C_TOE + 4], car.toe)
+
+
+def test_car_table_holds_the_sines_and_cosines_of_toe_and_wing_angles_bit_for_bit():
+    # advance_car reads them from the table instead of forming them at every call: they must
+    # be libm's sin / cos of the angles exactly (math.sin and numba's call the same libm)
+    from madsim.cars import load_car
+    from madsim.physics.tables import car_table
+
+    car = load_car("madsim-gt")
+    toe = np.array([0.0, -1e-9, math.radians(0.3), -math.radians(0.3)])
+    car = dataclasses.replace(car, toe=toe, wing_angle=np.array([0.0872664626, 0.2094395102]))
+    cp, _, _ = car_table([car, load_car("madsim-sedan")], ["semi-pro", "semi-pro"])
+    for k in range(4):
+        assert cp[0, L.C_TOESIN + k] == math.sin(toe[k])
+        assert cp[0, L.C_TOECOS + k] == math.cos(toe[k])
+        assert (cp[1, L.C_TOESIN + k], cp[1, L.C_TOECOS + k]) == (0.0, 1.0)
+    for k in range(2):
+        assert cp[0, L.C_WGSIN + k] == math.sin(car.wing_angle[k])
+        assert cp[0, L.C_WGCOS + k] == math.cos(car.wing_angle[k])
+    assert cp[0, L.C_WGSIN] != 0.0 and cp[0, L.C_TOESIN + 2] != 0.0
