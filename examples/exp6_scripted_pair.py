@@ -19,6 +19,7 @@ seeds 1,000,000 + k), at both curriculum stages:
 
     PYTHONPATH=. python examples/exp6_scripted_pair.py                  # 100 episodes per stage
     PYTHONPATH=. python examples/exp6_scripted_pair.py --episodes 20 --no-wait
+    PYTHONPATH=. python examples/exp6_scripted_pair.py --wait-m 6      # a shorter wait
 """
 
 from __future__ import annotations
@@ -44,9 +45,11 @@ FOLLOW_M = (6.0, 14.0)  # speed from 0 to FOLLOW_SPEED over this gap to a car on
 OVERSHOOT = 2.0         # aim at target + OVERSHOOT x (target - n): the PID turns in proportion
 
 
-def scripted_pair_policy(columns: dict, limit: float, *, wait: bool = True):
+def scripted_pair_policy(columns: dict, limit: float, *, wait: bool = True,
+                         wait_m: float = WAIT_M):
     """obs (d,) -> T-S action (2,) for the exp6 observation layout ({field: first column});
-    limit: the track limit (action +-1 = trackPos +-limit)."""
+    limit: the track limit (action +-1 = trackPos +-limit); wait_m: the second learner waits
+    while a car is this close (m)."""
     k = np.arange(36)
     lo = np.radians(-180.0 + 10.0 * k)          # sector edges, clockwise (right) positive
     mid_sector = lo + np.radians(5.0)
@@ -69,7 +72,7 @@ def scripted_pair_policy(columns: dict, limit: float, *, wait: bool = True):
         gap = float(np.min(np.where(on_path, ahead, np.inf)))
         speed = (1.0 if first else FOLLOW_SPEED) * float(
             np.clip((gap - FOLLOW_M[0]) / (FOLLOW_M[1] - FOLLOW_M[0]), 0.0, 1.0))
-        if not first and speed_kmh < WAIT_KMH and np.any(valid & (opp < WAIT_M)):
+        if not first and speed_kmh < WAIT_KMH and np.any(valid & (opp < wait_m)):
             speed, target = -1.0, n_own
         aim = target + OVERSHOOT * (target - n_own)
         lane = float(np.clip(aim / HALF_WIDTH_M / limit, -1.0, 1.0))
@@ -82,6 +85,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--no-wait", action="store_true", help="both learners go at once")
+    ap.add_argument("--wait-m", type=float, default=WAIT_M,
+                    help="the second learner waits while a car is this close (m)")
     ap.add_argument("--stages", type=int, nargs="+", default=[0, 1])
     args = ap.parse_args()
     exp = experiment("exp6")
@@ -89,7 +94,7 @@ def main() -> None:
     base = load_scenario(sub)
     _, _, columns = with_distance_field(base)
     limit = float(base["server"]["track_limits"][1])
-    policy = scripted_pair_policy(columns, limit, wait=not args.no_wait)
+    policy = scripted_pair_policy(columns, limit, wait=not args.no_wait, wait_m=args.wait_m)
     names = [a["name"] for a in base["agents"]]
     print("stage | joint success | per learner: passed, how the episodes end | wall s")
     for stage in args.stages:
