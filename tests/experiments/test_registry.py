@@ -165,3 +165,34 @@ def test_exp5_traffic_reaches_its_parking_spots():
     assert highs == sorted(highs, reverse=True)
     assert all(track.curvature_at(s) == 0.0 for t in cfg["traffic"]
                for s in (t["parking_distance"][0], t["parking_distance"][1]))
+
+
+def test_exp6_is_solvable_by_a_pair_that_takes_turns():
+    """Exp6 as evaluated (the last curriculum stage, evaluate_pair's joint passage): a scripted
+    pair built from the learners' own observations passes when the left learner waits for the
+    right one to pull away, and fails when both drive for the gap at once (the bottleneck
+    admits one car at a time: the scenario tests negotiation, not driving). As in MADRaS's
+    multi-agent env, the first learner's done ends the episode for both (seed 1,000,004:
+    agent_2 hits a parked car on step 25 and agent_1 stops behind it, as it would time out)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "exp6_scripted_pair.py"
+    spec = importlib.util.spec_from_file_location("exp6_scripted_pair", path)
+    pair = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pair)
+    from madsim.experiments.evaluate import evaluate_pair, with_distance_field
+
+    exp = experiment("exp6")
+    cfg = load_scenario(exp.subruns[0], exp.conditions[0].overrides)
+    _, _, columns = with_distance_field(cfg)
+    rates = {}
+    for wait in (True, False):
+        policy = pair.scripted_pair_policy(columns, cfg["server"]["track_limits"][1], wait=wait)
+        summary, per = evaluate_pair({"agent_1": policy, "agent_2": policy}, cfg, episodes=5,
+                                     max_ticks=600)
+        rates[wait] = summary["joint_success_rate"]
+        if wait:    # nobody collides: both drive on to the time limit
+            assert all(e[f"{a}_dones"] == ("TimeOut",) for e in per for a in ("agent_1", "agent_2"))
+        assert all(e["agent_1_steps"] == e["agent_2_steps"] for e in per)
+        assert wait or per[4]["agent_2_dones"] == ("Collision",) and per[4]["agent_2_steps"] < 30
+    assert rates == {True: 1.0, False: 0.0}
