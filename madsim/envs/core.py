@@ -226,6 +226,7 @@ class MadrasCore:
         self.episode = -1            # index k of the current episode (order "fixed")
         self.resets = 0
         self.live: list[str] = []
+        self._end_together = False   # server.episode_end "any": the first done ends every learner
         self.plan: EpisodePlan | None = None
         self.fleet = TrafficFleet(0)
         self.stage: _Stage = self._stage(0)
@@ -318,6 +319,7 @@ class MadrasCore:
             self.fleet.put(j, b)
         self._traffic_rows = np.arange(plan.n_traffic)
         self.live = list(plan.agents)
+        self._end_together = cfg.server.episode_end == "any"
         self.tick = 0
         self._init_wait(cfg.server.init_wait * self.ticks_per_step)
         for name in self.live:
@@ -446,6 +448,12 @@ class MadrasCore:
                     u[k, 4] = 0.0
                 else:
                     still.append(entry)
+            if self._end_together and len(still) < len(running):
+                for name, agent, k, st in still:     # MADRaS: the first done ends every learner's
+                    st[2], st[4], st[5] = True, ("EpisodeEnd",), frame
+                    u[k, :3] = _STOP
+                    u[k, 4] = 0.0
+                still = []
             running = still
             if not running:
                 break

@@ -139,6 +139,10 @@ class EpisodeConfig:
     (`madsim.physics.schedule.TorcsClock`, as `madsim serve --tick-schedule torcs`), tick for
     tick from each reset, so a real-TORCS trace can be replayed; ticks are still counted as
     0.02 s where time is derived from them (max_steps, AvgSpeed, traffic's clock).
+    episode_end (several learners): "each" (the default, PettingZoo's way) lets the others drive
+    on when one learner is done; "any" ends every learner's episode on the tick the first one is
+    done, as MADRaS's multi-agent env does (`done["__all__"] = any`, its agents' PID sub-step
+    loops stopped together); the others end terminated with the done "EpisodeEnd".
     grid: the starting grid (`GridConfig`); None: TORCS's quickrace grid with distance_to_start
     (a distance to start is given either here or as grid.distance_to_start, not both)."""
 
@@ -154,6 +158,7 @@ class EpisodeConfig:
     laps: int = 1
     init_wait: int = 0
     tick_schedule: str = "fixed"
+    episode_end: str = "each"
     grid: GridConfig | None = None
 
     def __post_init__(self):
@@ -176,6 +181,7 @@ class EpisodeConfig:
                 fail("traffic_count", "needs 0 <= min <= max", list(self.traffic_count))
         check_choice(self, "order", ("fixed", "random"))
         check_choice(self, "tick_schedule", TICK_SCHEDULES)
+        check_choice(self, "episode_end", ("each", "any"))
         check_positive(self, "max_steps", "laps")
         check_positive(self, "distance_to_start", "init_wait", allow_zero=True)
         if not self.track_limits[0] < self.track_limits[1]:

@@ -100,14 +100,12 @@ def _summary(per: list[dict]) -> dict:
 
 
 def evaluate_pair(policies: dict, cfg: dict, *, episodes: int = 100, seed: int = EVAL_SEED,
-                  max_ticks: int | None = None, end_together: bool = True) -> tuple[dict, list[dict]]:
+                  max_ticks: int | None = None) -> tuple[dict, list[dict]]:
     """Evaluate learners of a MadrasParallelEnv scenario, `policies[agent](obs (d,)) -> action`,
     over `episodes` episodes (seeds seed + k). Joint success: every learner got PASS_MARGIN_M
     beyond the farthest parking spot (traffic initial_distance high) with no Collision done
-    before the last of them passed. end_together: the episode ends when the first learner is
-    done, as in MADRaS's multi-agent env and in training (madsim.train.rllib, end_together);
-    else when the last one is. Summary: joint_success_rate, and per agent the lap fraction,
-    speed and return means."""
+    before the last of them passed. Summary: joint_success_rate, and per agent the lap
+    fraction, speed and return means."""
     from madsim.envs.parallel_env import MadrasParallelEnv
 
     ecfg = copy.deepcopy(cfg)
@@ -148,8 +146,6 @@ def evaluate_pair(policies: dict, cfg: dict, *, episodes: int = 100, seed: int =
                     if terminated.get(a) or truncated.get(a):
                         r["end"] = step
                         r["dones"] = tuple(infos[a].get("dones", ()))
-                if end_together and any(rec[a]["end"] is not None for a in names):
-                    break
             last_pass = max((rec[a]["passed"] or 10**9) for a in names)
             crashed = any("Collision" in rec[a]["dones"] and rec[a]["end"] <= last_pass for a in names)
             joint = all(rec[a]["passed"] is not None for a in names) and not crashed

@@ -129,8 +129,7 @@ def _train_rllib(exp, sub, cfg, run_dir: Path, budget, seed: int, address, log) 
                        checkpoint_every=budget.rllib_iterations, log=log, policies="per_agent",
                        num_env_runners=budget.rllib_runners, seed=seed,
                        train_batch_size=budget.rllib_batch, minibatch_size=budget.rllib_minibatch,
-                       num_epochs=budget.n_epochs, hidden=PAPER_NET, lr=budget.lr,
-                       end_together=True)          # MADRaS: any learner done ends the episode
+                       num_epochs=budget.n_epochs, hidden=PAPER_NET, lr=budget.lr)
     wall = time.time() - t0
     steps = rows[-1]["env_steps"] if rows else 0
     return {"env_steps": steps, "train_wall_s": round(wall, 1),

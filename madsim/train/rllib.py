@@ -6,10 +6,7 @@ small subclass (`MadsimRllibEnv`) that fixes two things for madsim:
   every one truncated; an episode where one car crashed (terminated) while the last one timed
   out (truncated) would then never end, and the next step would hit a finished episode. Here
   the episode ends when no agent is left; it counts as truncated when every agent of the
-  last step was truncated, else as terminated. With `end_together` (env_config key, MADRaS
-  M2's rule, spec s. 10: `done["__all__"] = any agent done`) the episode ends on the first step
-  any agent leaves, and the agents still driving end with it as terminated (MADRaS's RLlib
-  marked every agent done with `__all__`, so their last step was not bootstrapped either).
+  last step was truncated, else as terminated.
 - spaces: per-agent `observation_spaces` / `action_spaces` dicts (RLlib's new API stack reads
   these) and `possible_agents` in config order.
 
@@ -48,17 +45,15 @@ __all__ = ["MadsimRllibEnv", "ppo_config", "result_row", "train_rllib"]
 class MadsimRllibEnv(ParallelPettingZooEnv):
     """A `MadrasParallelEnv` as an RLlib `MultiAgentEnv` (via `ParallelPettingZooEnv`).
 
-    env_config: {"config": path, mapping or ScenarioConfig, "end_together": bool (default
-    False)}; or an already built MadrasParallelEnv passed as `env` (then `end_together` as a
-    keyword)."""
+    env_config: {"config": path, mapping or ScenarioConfig}; or an already built
+    MadrasParallelEnv passed as `env`."""
 
-    def __init__(self, env_config: Mapping | None = None, *, env=None, end_together: bool = False):
-        env_config = dict(env_config or {})
+    def __init__(self, env_config: Mapping | None = None, *, env=None):
         if env is None:
             from madsim.envs.parallel_env import MadrasParallelEnv
 
+            env_config = dict(env_config or {})
             env = MadrasParallelEnv(env_config.get("config"))
-        self.end_together = bool(env_config.get("end_together", end_together))
         super().__init__(env)
         order = list(env.possible_agents)
         self.possible_agents = order
@@ -76,10 +71,6 @@ class MadsimRllibEnv(ParallelPettingZooEnv):
     def step(self, action_dict):
         obs, rewards, terminated, truncated, infos = self.par_env.step(action_dict)
         self.agents = list(self.par_env.agents)
-        if self.end_together and self.agents and len(self.agents) < len(terminated):
-            for a in self.agents:           # MADRaS ends every agent's episode with the first
-                terminated[a] = True
-            self.agents = []
         over = not self.agents
         all_truncated = over and all(truncated.values())
         terminated["__all__"] = over and not all_truncated
@@ -94,12 +85,10 @@ def _scenario(config) -> ScenarioConfig:
 def ppo_config(config, *, policies: str = "per_agent", num_env_runners: int = 2,
                seed: int = 0, train_batch_size: int = 4000, minibatch_size: int = 500,
                num_epochs: int = 10, rollout_fragment_length: int | str = "auto",
-               hidden: tuple[int, ...] = (64, 64), lr: float = 3e-4, gamma: float = 0.99,
-               end_together: bool = False):
+               hidden: tuple[int, ...] = (64, 64), lr: float = 3e-4, gamma: float = 0.99):
     """An RLlib `PPOConfig` for the multi-agent scenario `config` (path, mapping or
     ScenarioConfig). Batch sizes count env steps of one agent's module (RLlib's
-    `train_batch_size_per_learner`). end_together: an episode ends when any agent leaves
-    (MADRaS's multi-agent env) instead of when the last one does."""
+    `train_batch_size_per_learner`)."""
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
@@ -128,8 +117,7 @@ def ppo_config(config, *, policies: str = "per_agent", num_env_runners: int = 2,
     probe.close()
     return (
         PPOConfig()
-        .environment(MadsimRllibEnv, env_config={"config": config_to_dict(cfg),
-                                                  "end_together": bool(end_together)})
+        .environment(MadsimRllibEnv, env_config={"config": config_to_dict(cfg)})
         .env_runners(num_env_runners=num_env_runners,
                      rollout_fragment_length=rollout_fragment_length)
         .multi_agent(policies=modules, policy_mapping_fn=mapping)

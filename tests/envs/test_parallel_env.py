@@ -73,6 +73,25 @@ def test_an_agent_that_is_done_leaves_while_the_other_drives_on():
     assert obs["b"][0] * 50.0 > 20.0                                  # b accelerates on
 
 
+
+def test_episode_end_any_ends_every_learner_with_the_first_done():
+    """server.episode_end "any" (MADRaS's multi-agent env: done["__all__"] = any agent done,
+    every agent's PID sub-step loop stopped with it): a times out at tick 100, in the middle
+    of a T-S step of 5 ticks; b, which would drive on, ends terminated on that same tick."""
+    ts = {"action": {"space": "TS"}, "pid": {"latency": 5}, "target_speed": 20.0}
+    env = MadrasParallelEnv(two_cars({**ts, "dones": ["TimeOut"]}, {**ts, "dones": ["RaceOver"]},
+                                     max_steps=98, episode_end="any"))
+    env.reset(seed=0)
+    go = np.array([0.0, 1.0])
+    for _ in range(19):
+        env.step({"a": go, "b": go})
+    obs, rew, term, trunc, info = env.step({"a": go, "b": go})
+    assert trunc["a"] and info["a"]["dones"] == ("TimeOut",) and info["a"]["ticks"] == 3
+    assert term["b"] and not trunc["b"] and info["b"]["dones"] == ("EpisodeEnd",)
+    assert info["b"]["ticks"] == 3 and env.agents == []
+    with pytest.raises(ConfigError, match="episode_end"):
+        MadrasParallelEnv(two_cars({}, {}, episode_end="first"))
+
 def test_a_missing_or_unknown_action_is_refused():
     env = MadrasParallelEnv(two_cars({}, {}))
     env.reset(seed=0)

@@ -107,17 +107,3 @@ def test_one_training_iteration_with_two_rollout_workers(tmp_path):
     assert [int(r["iteration"]) for r in logged] == [1]
     assert (tmp_path / "checkpoint").is_dir() and any((tmp_path / "checkpoint").iterdir())
     assert (tmp_path / "config.yml").is_file() and (tmp_path / "run.json").is_file()
-
-
-def test_end_together_ends_every_agents_episode_with_the_first_done():
-    """MADRaS's multi-agent env (spec s. 10): done["__all__"] = any agent done, and its RLlib
-    then counted every agent done. a crashes on the first step: b's episode ends with it."""
-    staged = [{"a": "term"}, {}, {"b": "trunc"}]
-    env = MadsimRllibEnv(env=ScriptedEnding(staged), end_together=True)
-    env.reset()
-    _, _, term, trunc, _ = env.step({a: np.zeros(1, np.float32) for a in env.par_env.agents})
-    assert term == {"a": True, "b": True, "__all__": True} and not trunc["__all__"]
-    assert env.agents == []
-    # timing out together is still a truncation
-    env = MadsimRllibEnv(env=ScriptedEnding([{"a": "trunc", "b": "trunc"}]), end_together=True)
-    assert _steps(env) == [(False, True)]
