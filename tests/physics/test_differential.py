@@ -171,6 +171,36 @@ def test_driven_rear_axle_follows_its_differential_in_a_turn(ph, make_track, kin
         assert ratio < 0.75 * open_ratio
 
 
+def test_limited_slip_axle_locks_on_the_engine_torque_times_the_overall_ratio(ph, make_track):
+    # TORCS 1.3.7 (SimTransmissionUpdate, simuv2.so): the differential's input is the engine
+    # torque x the gear's overall ratio x min(3 x clutch transfer, 1), with no gear or
+    # differential efficiency; the limited-slip axle is a spool while that input is above its
+    # locking torque or below minus its locking brake torque. A turning sedan in 2nd gear with
+    # 90 % gear efficiencies: at full throttle the input is T(we) x G (the curve's torque); a
+    # lock 3 % below it makes the rear wheels one body (equal spins after two sub-steps: the
+    # spin average then takes the mean of two equal pairs), 3 % above it leaves them apart.
+    # Lifting off, the engine brakes with -k T(we) x G. Applying the efficiency would put the
+    # input 10 % nearer 0, and neither lock would engage.
+    import copy
+
+    car = ph.sedan(differential_types=("NONE", "LIMITED SLIP", "NONE"), gear_efficiencies=(0.9,) * 7)
+    w = turning(ph, make_track, car)
+    we = float(w.engine_speed[0])
+    k = car.engine_brake_coeff * (we - car.tickover) / (car.revs_maxi - car.tickover)
+    for accel, d_in, column in ((1.0, car.torque_at(we) * car.overall_ratio(2), L.C_DLOCK + 1),
+                                (0.0, -k * car.torque_at(we) * car.overall_ratio(2), L.C_DLOCKB + 1)):
+        for scale, locked in ((0.97, True), (1.03, False)):
+            c = copy.deepcopy(w)
+            c._cp[0, L.C_DLOCK + 1] = c._cp[0, L.C_DLOCKB + 1] = 1e9
+            c._cp[0, column] = scale * abs(d_in)
+            for _ in range(2):
+                c.step(np.array([[0.15, accel, 0.0, 2, 0.0]]), substeps=1)
+            wr = c.wheel_spin[0, 2:]
+            assert (wr[0] == wr[1]) == locked, (accel, scale, wr)
+            if not locked:      # the clamp holds them near (0.03 x (1 - 1 / 1.03) at full throttle)
+                assert abs(wr[0] - wr[1]) > 0.05
+
+
 def test_car_files_give_each_axle_its_differential(need_torcs):
     from madsim.cars import load_car
     car = load_car("155-DTM")
