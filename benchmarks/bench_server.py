@@ -156,10 +156,12 @@ def run(ticks: int, track: str, control: bytes, profile: str | None) -> tuple[fl
 
 def stage_costs(track: str, reps: int = 40, n: int = 100) -> None:
     """The compiled tick's stages in this process (a component figure: warm, no network): one
-    car (car1-trb1) driving at 0.3 throttle on `track`, `server_tick` called from Python for
-    each stage range; prints the best of `reps` runs of `n` ticks per stage, us per tick, and
-    the bytes of the last state message. The empty call (DONE..DONE) is the call's own cost
-    from Python (argument unboxing), which the compiled sync loop does not pay."""
+    car (car1-trb1) driving at 0.3 throttle on `track`, `server_tick` called for each stage
+    range from a compiled loop, as the sync loop calls it; prints the best of `reps` runs of
+    `n` ticks per stage, us per tick, and the bytes of the last state message. The empty call
+    (DONE..DONE) is the call's own cost (the address table's views it makes); `from Python`
+    is one whole tick called from Python (with the argument unboxing the sync loop skips)."""
+    import numba
     import numpy as np
 
     from madsim.cli import make_world_factory
@@ -177,7 +179,14 @@ def stage_costs(track: str, reps: int = 40, n: int = 100) -> None:
     inlen[0] = len(msg)
     snap = world.state.copy()
 
-    def best(first, stop):
+    @numba.njit
+    def ticks(count, first, stop, nsub, st, snap, table, dt, fuel_on, length, half_width, max_range,
+              max_bytes, max_damage):
+        for _ in range(count):   # typed as the sync loop calls it: the same compiled server_tick
+            server_tick(first, stop, np.bool_(True), np.bool_(True), nsub, st, snap, table, dt, fuel_on,
+                        length, half_width, max_range, max_bytes, max_damage)
+
+    def best(first, stop, compiled=True):
         times = []
         for _ in range(reps):
             world.state[:] = snap
@@ -185,17 +194,22 @@ def stage_costs(track: str, reps: int = 40, n: int = 100) -> None:
                 race.run(DECODE, DONE, True, 10, 0)
             args = race.args
             t0 = time.perf_counter()
-            for _ in range(n):
-                server_tick(first, stop, True, True, 10, *args)
+            if compiled:
+                ticks(n, np.int64(first), np.int64(stop), np.int64(10), *args)
+            else:
+                for _ in range(n):
+                    server_tick(first, stop, True, True, 10, *args)
             times.append(time.perf_counter() - t0)
         return min(times) / n * 1e6
 
     best(DECODE, DONE)                    # compile / load
+    best(DECODE, DONE, False)
     stages = [("whole tick", DECODE, DONE), ("decode", DECODE, STEP), ("step", STEP, SENSE),
               ("sense", SENSE, ENCODE), ("encode", ENCODE, DONE), ("empty call", DONE, DONE)]
     print(f"server_tick stages, {track}, one car, warm, in process (component figures), best of "
           f"{reps} x {n} ticks, us per tick:")
-    print("  " + "  ".join(f"{name} {best(a, b):.2f}" for name, a, b in stages))
+    print("  " + "  ".join(f"{name} {best(a, b):.2f}" for name, a, b in stages)
+          + f"  (whole tick from Python {best(DECODE, DONE, False):.2f})")
     print(f"  last message ({race.out_len[0]} B): {bytes(race.message(0))[:120]!r}...")
 
 
