@@ -285,7 +285,7 @@ _ROW_VALUES = st.one_of(
                      100000.0, 999999.0, 999999.4, 1e6, 9.9999949, 123.4565, 1e-38, 3e38]))
 
 
-@SETTINGS
+@settings(deadline=None, max_examples=100, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(_ROW_VALUES, min_size=76, max_size=76), st.integers(0, 75), st.integers(1, 40),
        st.tuples(st.integers(-1, 6), st.integers(1, 10), st.integers(0, 10000)))
 @example([200.0] * 76, 8, 36, (1, 1, 0))       # the one-car opponents and every run at once
