@@ -7,10 +7,13 @@ control messages; each figure is the best of 7 runs of N calls.
 
 from __future__ import annotations
 
+import time
 import timeit
 
+import numba
 import numpy as np
 
+from madsim.net import codec_kernels as K
 from madsim.net import protocol as P
 
 N = 20_000
@@ -36,6 +39,30 @@ def us_per_call(fn, *args) -> float:
     return best / N * 1e6
 
 
+@numba.njit
+def _encode_many(count, rows, is_int, lit, lit_end, max_bytes, out, length):
+    for _ in range(count):
+        K.encode_rows(rows, is_int, lit, lit_end, max_bytes, out, length)
+
+
+def kernel_us(row: np.ndarray) -> float:
+    """The server tick's encoder (`codec_kernels.encode_rows`) on one row, called from a
+    compiled loop as the server's tick calls it: us per message, best of 30 runs of 2,000 (short
+    runs: on a shared machine a longer one is mostly preempted)."""
+    enc = P.STATE_ENCODER
+    rows = row[None, :].astype(np.float64)
+    out = np.zeros((1, enc.message_width), dtype=np.uint8)
+    length = np.zeros(1, dtype=np.int64)
+    args = (rows, *enc.kernel_args(), out, length)
+    _encode_many(1, *args)
+    best = float("inf")
+    for _ in range(30):
+        t0 = time.perf_counter()
+        _encode_many(2000, *args)
+        best = min(best, time.perf_counter() - t0)
+    return best / 2000 * 1e6
+
+
 def main() -> None:
     values = P.decode_sensors(STATE)  # Python floats, as a SensorFrame row would give
     row32 = np.concatenate([np.atleast_1d(np.asarray(values[f.name], dtype=np.float32))
@@ -44,6 +71,11 @@ def main() -> None:
           f"{us_per_call(P.encode_sensors, values):.2f} us/call")
     print(f"encode_sensors_flat (float32 row of 79): "
           f"{us_per_call(P.encode_sensors_flat, row32):.2f} us/call")
+    print(f"encode_rows kernel, compiled caller (one car, spec example): {kernel_us(row32):.3f} us/message")
+    one_car = row32.copy()
+    o = sum(f.width for f in P.SENSOR_FIELDS[:[f.name for f in P.SENSOR_FIELDS].index("opponents")])
+    one_car[o:o + 36] = 200.0
+    print(f"encode_rows kernel, compiled caller (alone: opponents at 200): {kernel_us(one_car):.3f} us/message")
     print(f"decode_controls (C++ client message): "
           f"{us_per_call(P.decode_controls, CPP_CONTROLS):.2f} us/call")
     print(f"decode_controls (snakeoil message): "

@@ -4,6 +4,10 @@ Run: python benchmarks/bench_server.py [--ticks 20000] [--track madsim-oval] [--
                                        [--profile FILE]
      python benchmarks/bench_server.py --tools ../shared/tools [--reps 3] [--ticks 20000]
                                        [--baseline OTHER_CHECKOUT] [--pin]
+     python benchmarks/bench_server.py --stages [--track g-track-1]
+
+With --stages: the compiled tick's stages (decode, step, sense, encode) in this process, us per
+tick (component figures, see `stage_costs`).
 
 With --tools DIR: the issue-13 acceptance procedure instead. DIR holds `scr_speed_probe.py`
 (the minimal client; `--full` parses every sensor first) and `scr_echo_server.py` (a
@@ -150,6 +154,65 @@ def run(ticks: int, track: str, control: bytes, profile: str | None) -> tuple[fl
             server.wait()
 
 
+def stage_costs(track: str, reps: int = 40, n: int = 100) -> None:
+    """The compiled tick's stages in this process (a component figure: warm, no network): one
+    car (car1-trb1) driving at 0.3 throttle on `track`, `server_tick` called for each stage
+    range from a compiled loop, as the sync loop calls it; prints the best of `reps` runs of
+    `n` ticks per stage, us per tick, and the bytes of the last state message. The empty call
+    (DONE..DONE) is the call's own cost (the address table's views it makes); `from Python`
+    is one whole tick called from Python (with the argument unboxing the sync loop skips)."""
+    import numba
+    import numpy as np
+
+    from madsim.cli import make_world_factory
+    from madsim.net.server import MAX_DAMAGE, RECV_BYTES
+    from madsim.net.server_tick import DECODE, DONE, ENCODE, SENSE, STEP, ServerTick, server_tick
+    from madsim.physics.sensors import SensorSuite
+
+    world = make_world_factory(track, ["car1-trb1"], 1)(0)
+    suite = SensorSuite(world, noisy=False, rng=np.random.default_rng(0))
+    inbox = np.zeros((1, RECV_BYTES), dtype=np.uint8)
+    inlen = np.full(1, -1, dtype=np.int64)
+    race = ServerTick(world, suite, np.zeros((1, 5)), inbox, inlen, MAX_DAMAGE)
+    msg = b"(accel 0.3)(brake 0)(gear 1)(steer 0.0)(clutch 0)(focus 0)(meta 0)\0"
+    inbox[0, :len(msg)] = np.frombuffer(msg, dtype=np.uint8)
+    inlen[0] = len(msg)
+    snap = world.state.copy()
+
+    @numba.njit
+    def ticks(count, first, stop, nsub, st, snap, table, dt, fuel_on, length, half_width, max_range,
+              max_bytes, max_damage):
+        for _ in range(count):   # typed as the sync loop calls it: the same compiled server_tick
+            server_tick(first, stop, np.bool_(True), np.bool_(True), nsub, st, snap, table, dt, fuel_on,
+                        length, half_width, max_range, max_bytes, max_damage)
+
+    def best(first, stop, compiled=True):
+        times = []
+        for _ in range(reps):
+            world.state[:] = snap
+            for _ in range(150):          # the car rolling, off the grid
+                race.run(DECODE, DONE, True, 10, 0)
+            args = race.args
+            t0 = time.perf_counter()
+            if compiled:
+                ticks(n, np.int64(first), np.int64(stop), np.int64(10), *args)
+            else:
+                for _ in range(n):
+                    server_tick(first, stop, True, True, 10, *args)
+            times.append(time.perf_counter() - t0)
+        return min(times) / n * 1e6
+
+    best(DECODE, DONE)                    # compile / load
+    best(DECODE, DONE, False)
+    stages = [("whole tick", DECODE, DONE), ("decode", DECODE, STEP), ("step", STEP, SENSE),
+              ("sense", SENSE, ENCODE), ("encode", ENCODE, DONE), ("empty call", DONE, DONE)]
+    print(f"server_tick stages, {track}, one car, warm, in process (component figures), best of "
+          f"{reps} x {n} ticks, us per tick:")
+    print("  " + "  ".join(f"{name} {best(a, b):.2f}" for name, a, b in stages)
+          + f"  (whole tick from Python {best(DECODE, DONE, False):.2f})")
+    print(f"  last message ({race.out_len[0]} B): {bytes(race.message(0))[:120]!r}...")
+
+
 def probe_runs(tools: str, reps: int, ticks: int, baseline: str | None = None, pin: bool = False) -> None:
     """The acceptance procedure of issue 13 (see the module docstring): prints one line per run
     and a summary (median and range). `baseline`: another checkout whose `madsim serve` runs
@@ -222,9 +285,14 @@ def main() -> None:
     ap.add_argument("--track", default="madsim-oval")
     ap.add_argument("--case", choices=sorted(CONTROLS), action="append",
                     help="control string(s) to time (default: all)")
+    ap.add_argument("--stages", action="store_true", help="the compiled tick's stages in this "
+                    "process, us per tick (component figures; see stage_costs)")
     ap.add_argument("--profile", default=None, help="write the server's cProfile output here "
                     "(one case only)")
     args = ap.parse_args()
+    if args.stages:
+        stage_costs("g-track-1" if args.track == "madsim-oval" else args.track)
+        return
     if args.tools:
         probe_runs(args.tools, args.reps, args.ticks, args.baseline, args.pin)
         return

@@ -87,6 +87,30 @@ def _arc_q(runs, j, x, y):
     return d / 2.0 + _wrapn(sense * (phi - theta0) - d / 2.0)
 
 
+ON_ARC_MARGIN = 1e-9
+"""rad: `_on_arc` decides without atan2 only this far from the arc's ends (atan2 and the
+cross products err by ~1e-15 rad; `_arc_q`'s own tolerance is 1e-12)."""
+
+
+@numba.njit(cache=True, inline="always")
+def _on_arc(runs, j, px, py, radius, sense, d):
+    """Whether the point (px, py) from the centre of arc run j (on the circle of `radius`) lies
+    within its span, as `-1e-12 <= _arc_q <= d + 1e-12` decides: 1 or 0 from two cross
+    products with the radial unit vectors at its ends when the point is over ON_ARC_MARGIN
+    from both, else -1 (ask `_arc_q`; also for arcs of 3 rad or more, where the half-plane
+    test would not be enough)."""
+    if d >= 3.0:
+        return -1
+    margin = ON_ARC_MARGIN * radius
+    after_start = sense * (runs[j, RUN_C0] * py - runs[j, RUN_S0] * px)    # |P| sin(angle from start)
+    before_end = sense * (px * runs[j, RUN_S1] - py * runs[j, RUN_C1])     # |P| sin(angle to end)
+    if after_start > margin and before_end > margin:
+        return 1
+    if after_start < -margin or before_end < -margin:
+        return 0
+    return -1
+
+
 @numba.njit(cache=True, _nrt=False)   # allocates nothing: no reference counts (kernel.NO_REFCOUNT)
 def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
     """Distance along unit direction (dx, dy) from (px, py), inside run j, to the first road
@@ -141,8 +165,12 @@ def cast_ray(runs, half_width, j, px, py, dx, dy, max_range):
                 sq = math.sqrt(disc)
                 for tau in (-b - sq, -b + sq):
                     if 1e-12 < tau < best - t:
-                        q = _arc_q(runs, j, ox + tau * dx, oy + tau * dy)
-                        if -1e-12 <= q <= d + 1e-12:
+                        hx, hy = ox + tau * dx, oy + tau * dy
+                        on = _on_arc(runs, j, hx - cx, hy - cy, radius, sense, d)
+                        if on < 0:
+                            q = _arc_q(runs, j, hx, hy)
+                            on = 1 if -1e-12 <= q <= d + 1e-12 else 0
+                        if on == 1:
                             best = t + tau
                             event = 0
             # radial boundary lines: start (angle theta0) and end (theta0 + sense * d)

@@ -84,3 +84,35 @@ def test_rays_follow_the_road_over_the_wheel_2_bridge():
     x, y, _, h = t.pose(2384.0, 0.0)
     ahead = t.rangefinders(x, y, h, [0.0], s_hint=2384.0)[0, 0]
     assert ahead > 2 * t.width
+
+
+@pytest.mark.parametrize("name", ["madsim-road", "madsim-oval"])
+def test_on_arc_filter_decides_as_the_arc_angle_does(name):
+    """`_on_arc` (two cross products) decides a crossing point's place on an arc exactly as
+    `_arc_q` (atan2) with its 1e-12 rad tolerance does, or defers (-1): points spread over
+    every arc run and around it, and points 1e-11..1e-5 rad from either end."""
+    from madsim.tracks.rays import RUN_ARC, RUN_CX, RUN_CY, RUN_KIND, RUN_R, _arc_frame, _arc_q, _on_arc
+
+    t = load_track(name)
+    runs = t.runs
+    rng = np.random.default_rng(3)
+    decided = deferred = 0
+    for j in np.flatnonzero(runs[:, RUN_KIND] != 0.0):
+        theta0, sense = _arc_frame(runs, j)
+        d = runs[j, RUN_ARC]
+        near_ends = np.concatenate([e + sign * 10.0 ** rng.uniform(-11, -5, 200)
+                                    for e in (0.0, d) for sign in (-1.0, 1.0)])
+        for alpha in np.concatenate([rng.uniform(-math.pi, math.pi, 400), near_ends]):
+            radius = runs[j, RUN_R] + rng.uniform(-1.0, 1.0) * t.width / 2
+            phi = theta0 + sense * alpha
+            x = runs[j, RUN_CX] + radius * math.cos(phi)
+            y = runs[j, RUN_CY] + radius * math.sin(phi)
+            q = _arc_q(runs, j, x, y)
+            on = _on_arc(runs, j, x - runs[j, RUN_CX], y - runs[j, RUN_CY], radius, sense, d)
+            if on < 0:
+                deferred += 1
+                assert d >= 3.0 or min(abs(alpha), abs(alpha - d)) < 2e-9   # only at the very ends
+            else:
+                decided += 1
+                assert on == (1 if -1e-12 <= q <= d + 1e-12 else 0), (j, alpha, q, d)
+    assert decided > 0 and deferred > 0
