@@ -11,6 +11,7 @@ import math
 
 import numba
 
+from madsim.physics import elementary as el
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H, C_IXX, C_IYY,
     C_PACK, C_RIDE0, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
@@ -108,8 +109,14 @@ def on_piece(pt, p, q):
 @numba.njit(inline="always", **_JIT)
 def _road_z(pt, tsc, p, q, n):
     """Road height, m, at distance q along piece p (may run one piece over either end) and
-    lateral offset n (track spec 5.4: linear right edge + banking, as `track_update`)."""
+    lateral offset n (track spec 5.4: linear right edge + banking, as `kernel.track_observed`)."""
     p, q = on_piece(pt, p, q)
+    return _road_z_at(pt, tsc, p, q, n)
+
+
+@numba.njit(inline="always", **_JIT)
+def _road_z_at(pt, tsc, p, q, n):
+    """`_road_z` of a point already on piece p (0 <= q <= its length)."""
     u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
     b0, b1 = pt[p, P_B0], pt[p, P_B1]
     tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
@@ -149,6 +156,31 @@ def relief(pt, surf, tsc, p, q, n, main):
     width, and a side that continues the road's cross slope gets the saw-tooth that follows
     (docs/physics.md). 0 on a smooth road."""
     p, q = on_piece(pt, p, q)
+    base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, p, q, n, main)
+    if a == 0.0:
+        return base
+    return base + _relief_bump(a, kt, kl, curb, d, bw)
+
+
+@numba.njit(**_JIT, _nrt=False)
+def _relief_bump(a, kt, kl, curb, d, bw):
+    """`relief` above its base from `_relief_terms` (a != 0): a sin(k l) d / bw on a curb, else
+    a sin(k t) sin(k l); the sines are `elementary`'s (within 2 ulp of libm's for |k l| up to
+    1e5 rad, tests/physics/test_elementary.py), about twice as fast as libm's `sin` calls.
+    Deliberately not inlined: inlined in `kernel.advance_car`, its code (even where the road
+    is smooth and it never runs) slows a sub-step by ~15 % (benchmarks/RESULTS.md, "The car
+    sub-step on real tracks"); a call only costs where the road is rough."""
+    wave = el.sincos(kl)[0]
+    if curb:
+        return a * wave * d / bw
+    return a * el.sincos(kt)[0] * wave
+
+
+@numba.njit(inline="always", **_JIT)
+def _relief_terms(pt, surf, tsc, p, q, n, main):
+    """`relief` of a point already on piece p (0 <= q <= its length) without its sines:
+    (base, a, k t, k l, curb, d, bw) with relief = base + a sin(k l) d / bw on a curb, else
+    base + a sin(k t) sin(k l) (names as in `relief`; a = 0: no roughness, relief = base)."""
     w = tsc[T_WIDTH]
     t = n + 0.5 * w                      # TORCS's toRight on the road
     m = 0.0                              # the zone's centre line, m left of the road's
@@ -194,13 +226,8 @@ def relief(pt, surf, tsc, p, q, n, main):
     if curb:
         base = d * rise
     a = surf[j, 2]
-    if a == 0.0:
-        return base
     k = surf[j, 3]
-    wave = math.sin(k * q * (1.0 - pt[p, P_CURV] * m))
-    if curb:
-        return base + a * wave * d / bw
-    return base + a * math.sin(k * t) * wave
+    return base, a, k * t, k * q * (1.0 - pt[p, P_CURV] * m), curb, d, bw
 
 
 @numba.njit(inline="always", **_JIT)
@@ -227,11 +254,18 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
-    road_fr = road_lr = 0.0       # front minus rear, left minus right sums of the road heights
+    l_z = el.lanes4()            # the road height under each wheel, m
     for k in range(4):
         xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-        qk, nk = q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi
-        road = _road_z(pt, tsc, p, qk, nk) + relief(pt, surf, tsc, p, qk, nk, False)
+        pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
+        nk = n + xk * spsi + yk * cpsi
+        base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, pk, qk, nk, False)
+        if a != 0.0:
+            base = base + _relief_bump(a, kt, kl, curb, d, bw)
+        l_z[k] = _road_z_at(pt, tsc, pk, qk, nk) + base
+    road_fr = road_lr = 0.0       # front minus rear, left minus right sums of the road heights
+    for k in range(4):
+        road = l_z[k]
         road_fr += road if k < 2 else -road
         road_lr += road if k % 2 == 1 else -road
         ride = zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr - road
