@@ -159,21 +159,32 @@ def relief(pt, surf, tsc, p, q, n, main):
     base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, p, q, n, main)
     if a == 0.0:
         return base
-    return base + _relief_bump(a, kt, kl, curb, d, bw)
+    return _relief_sum(base, a, math.sin(kt), math.sin(kl), curb, d, bw)
+
+
+@numba.njit(inline="always", **_JIT)
+def _relief_sum(base, a, sin_t, sin_l, curb, d, bw):
+    """`relief` from its `_relief_terms` and the sines of their k t and k l."""
+    if a == 0.0:
+        return base
+    return base + (a * sin_l * d / bw if curb else a * sin_t * sin_l)
 
 
 @numba.njit(**_JIT, _nrt=False)
-def _relief_bump(a, kt, kl, curb, d, bw):
-    """`relief` above its base from `_relief_terms` (a != 0): a sin(k l) d / bw on a curb, else
-    a sin(k t) sin(k l); the sines are `elementary`'s (within 2 ulp of libm's for |k l| up to
-    1e5 rad, tests/physics/test_elementary.py), about twice as fast as libm's `sin` calls.
-    Deliberately not inlined: inlined in `kernel.advance_car`, its code (even where the road
-    is smooth and it never runs) slows a sub-step by ~15 % (benchmarks/RESULTS.md, "The car
-    sub-step on real tracks"); a call only costs where the road is rough."""
-    wave = el.sincos(kl)[0]
-    if curb:
-        return a * wave * d / bw
-    return a * el.sincos(kt)[0] * wave
+def _sines4(x0, x1, x2, x3, y0, y1, y2, y3):
+    """sin of eight arguments (rad, |x| up to 1e5), four at a time in SIMD lanes: `elementary`'s
+    sincos, within 2 ulp of libm's sin (tests/physics/test_elementary.py). The road relief's
+    sines under the four wheels (`wheel_loads`), ~4x cheaper than eight libm calls. Not
+    inlined: inlined in `kernel.advance_car`, its code (even where the road is smooth and it
+    never runs) slows the sub-step by ~15 % (benchmarks/RESULTS.md, "The car sub-step on real
+    tracks")."""
+    lx, ly, sx, sy = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
+    lx[0], lx[1], lx[2], lx[3] = x0, x1, x2, x3
+    ly[0], ly[1], ly[2], ly[3] = y0, y1, y2, y3
+    for k in range(4):
+        sx[k] = el.sincos(lx[k])[0]
+        sy[k] = el.sincos(ly[k])[0]
+    return sx[0], sx[1], sx[2], sx[3], sy[0], sy[1], sy[2], sy[3]
 
 
 @numba.njit(inline="always", **_JIT)
@@ -239,6 +250,17 @@ def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
 
 
 @numba.njit(inline="always", **_JIT)
+def _wheel_road_terms(cp, pt, surf, tsc, i, k, p, q, n, cpsi, spsi):
+    """Under wheel k of car i (CG at p, q, n: `_cg_on_piece`; (cpsi, spsi): cos, sin of yaw -
+    track heading): the smooth road's height (m) and the relief's `_relief_terms`."""
+    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+    pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
+    nk = n + xk * spsi + yk * cpsi
+    base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, pk, qk, nk, False)
+    return _road_z_at(pt, tsc, pk, qk, nk), base, a, kt, kl, curb, d, bw
+
+
+@numba.njit(inline="always", **_JIT)
 def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     """Vertical wheel forces of car i on the body (N, wheel order), from its suspensions and
     anti-roll bars at the body's present heave, roll and pitch over the road with its curbs and
@@ -254,15 +276,20 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
-    l_z = el.lanes4()            # the road height under each wheel, m
-    for k in range(4):
-        xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-        pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
-        nk = n + xk * spsi + yk * cpsi
-        base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, pk, qk, nk, False)
-        if a != 0.0:
-            base = base + _relief_bump(a, kt, kl, curb, d, bw)
-        l_z[k] = _road_z_at(pt, tsc, pk, qk, nk) + base
+    # the road under each wheel (m): the smooth plane and the relief's zone per wheel (branches),
+    # then, where a surface is rough, the relief's eight sines at once (`_sines4`)
+    z0, b0, a0, t0, l0, c0, d0, w0 = _wheel_road_terms(cp, pt, surf, tsc, i, 0, p, q, n, cpsi, spsi)
+    z1, b1, a1, t1, l1, c1, d1, w1 = _wheel_road_terms(cp, pt, surf, tsc, i, 1, p, q, n, cpsi, spsi)
+    z2, b2, a2, t2, l2, c2, d2, w2 = _wheel_road_terms(cp, pt, surf, tsc, i, 2, p, q, n, cpsi, spsi)
+    z3, b3, a3, t3, l3, c3, d3, w3 = _wheel_road_terms(cp, pt, surf, tsc, i, 3, p, q, n, cpsi, spsi)
+    if a0 != 0.0 or a1 != 0.0 or a2 != 0.0 or a3 != 0.0:
+        l0, l1, l2, l3, t0, t1, t2, t3 = _sines4(l0, l1, l2, l3, t0, t1, t2, t3)
+        b0 = _relief_sum(b0, a0, t0, l0, c0, d0, w0)
+        b1 = _relief_sum(b1, a1, t1, l1, c1, d1, w1)
+        b2 = _relief_sum(b2, a2, t2, l2, c2, d2, w2)
+        b3 = _relief_sum(b3, a3, t3, l3, c3, d3, w3)
+    l_z = el.lanes4()
+    l_z[0], l_z[1], l_z[2], l_z[3] = z0 + b0, z1 + b1, z2 + b2, z3 + b3
     road_fr = road_lr = 0.0       # front minus rear, left minus right sums of the road heights
     for k in range(4):
         road = l_z[k]
