@@ -202,11 +202,14 @@ def rolling_drag(roll, v, r, m, izz, wb, dt):
 @numba.njit(inline="always", **_JIT)
 def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
-    piece, and store s, n, piece, track heading, road z, the road gradient at the CG, the surface
-    under each wheel and (if count_laps) the lap bookkeeping of track spec 10.4.
-    Assumes the car moved at most a few pieces since the last call. Returns (cos, sin) of the
-    heading relative to the track, yaw - track heading (from cy, sy and the tangent of the piece
-    walk: no libm call; the suspension's next wheel loads use them)."""
+    piece, and store what a sub-step reads: s, n, piece, the surface under each wheel and (if
+    count_laps) the lap bookkeeping of track spec 10.4. What only observers read (the track
+    heading, the road's height and gradient at the CG, the lap time and distance raced) is
+    `track_observed`'s, once at the end of a call. Assumes the car moved at most a few pieces
+    since the last call. Returns (cos, sin) of the heading relative to the track, yaw - track
+    heading (from cy, sy and the tangent of the piece walk: no libm call; the suspension's next
+    wheel loads use them), then the walk's piece p, distance along it q (m), offset n (m) and
+    tangent (ch, sh) for `track_observed`."""
     old = int(st[i, S_PIECE])
     p, q, n, ch, sh = _locate(pt, old, x, y)
     length, w = tsc[T_LENGTH], tsc[T_WIDTH]
@@ -215,29 +218,9 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
         s -= length
     elif s < 0.0:
         s += length
-    plen, inv_len, curv = pt[p, P_LEN], pt[p, P_INVLEN], pt[p, P_CURV]
     st[i, S_S] = s
     st[i, S_N] = n
     st[i, S_PIECE] = p
-    st[i, S_THEAD] = _wrap(pt[p, P_A0] + q * curv)
-
-    # road height and gradient at the CG (track spec 5.4: linear right edge + banking)
-    u = min(max(q * inv_len, 0.0), 1.0)
-    b0, b1 = pt[p, P_B0], pt[p, P_B1]
-    tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
-    yr = n + 0.5 * w
-    lo = -1e30 if tsc[T_TANGENT_R] > 0.0 else 0.0
-    hi = 1e30 if tsc[T_TANGENT_L] > 0.0 else w
-    yc = min(max(yr, lo), hi)
-    zr0 = pt[p, P_ZR0]
-    z = zr0 + u * (pt[p, P_ZR1] - zr0) + yc * tb
-    dz_dq = ((pt[p, P_ZR1] - zr0) + yc * (b1 - b0) * (1.0 + tb * tb)) * inv_len
-    if curv != 0.0:     # metres along the track at offset n on a curve
-        dz_dq /= max(1.0 - curv * n, 0.1)
-    dz_dn = tb if lo <= yr <= hi else 0.0
-    st[i, S_GX] = dz_dq * ch - dz_dn * sh
-    st[i, S_GY] = dz_dq * sh + dz_dn * ch
-    st[i, S_ROADZ] = z + relief(pt, surf, tsc, p, q, n, True)    # the z sensor's road (TORCS's RtTrackHeightL)
 
     # surface under each wheel, from the CG's local frame; fast path when every wheel is on a
     # road whose material is the same on this piece and its neighbours
@@ -245,14 +228,13 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     spsi = sy * ch - cy * sh
     half = 0.5 * w
     reach = cp[i, C_REACH]
-    if pt[p, P_SAMESURF] > 0.0 and abs(n) + reach <= half and reach <= plen:
+    if pt[p, P_SAMESURF] > 0.0 and abs(n) + reach <= half and reach <= pt[p, P_LEN]:
         j = int(pt[p, P_SURF])
         for k in range(4):
             st[i, S_FRIC + k] = surf[j, 0]
             st[i, S_ROLL + k] = surf[j, 1]
     else:
         _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half)
-
 
     if count_laps and p != old:
         f_old, f_new = pt[old, P_FLAG], pt[p, P_FLAG]
@@ -271,9 +253,37 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
                     st[i, S_LAPSTART] = st[i, S_TIME]
         elif f_old == FLAG_START and f_new == FLAG_LAST:
             st[i, S_BACK] += 1.0
+    return cpsi, spsi, p, q, n, ch, sh
+
+
+@numba.njit(inline="always", **_JIT)
+def track_observed(st, i, pt, surf, tsc, p, q, n, ch, sh):
+    """Store what of car i's track position only observers read (the sensors, `settle`, race
+    positions), from the last `track_update`'s walk (p, q, n, ch, sh): the track heading, the
+    road's height (with its relief: the z sensor's road, TORCS's RtTrackHeightL) and gradient at
+    the CG (track spec 5.4: linear right edge + banking), the lap time and the distance raced.
+    No sub-step reads them, so `advance_car` stores them once after its sub-steps."""
+    length, w = tsc[T_LENGTH], tsc[T_WIDTH]
+    inv_len, curv = pt[p, P_INVLEN], pt[p, P_CURV]
+    st[i, S_THEAD] = _wrap(pt[p, P_A0] + q * curv)
+    u = min(max(q * inv_len, 0.0), 1.0)
+    b0, b1 = pt[p, P_B0], pt[p, P_B1]
+    tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
+    yr = n + 0.5 * w
+    lo = -1e30 if tsc[T_TANGENT_R] > 0.0 else 0.0
+    hi = 1e30 if tsc[T_TANGENT_L] > 0.0 else w
+    yc = min(max(yr, lo), hi)
+    zr0 = pt[p, P_ZR0]
+    z = zr0 + u * (pt[p, P_ZR1] - zr0) + yc * tb
+    dz_dq = ((pt[p, P_ZR1] - zr0) + yc * (b1 - b0) * (1.0 + tb * tb)) * inv_len
+    if curv != 0.0:     # metres along the track at offset n on a curve
+        dz_dq /= max(1.0 - curv * n, 0.1)
+    dz_dn = tb if lo <= yr <= hi else 0.0
+    st[i, S_GX] = dz_dq * ch - dz_dn * sh
+    st[i, S_GY] = dz_dq * sh + dz_dn * ch
+    st[i, S_ROADZ] = z + relief(pt, surf, tsc, p, q, n, True)
     st[i, S_CURLAP] = st[i, S_TIME] - st[i, S_LAPSTART]
-    st[i, S_DIST] = (st[i, S_LAPS] - (st[i, S_BACK] + 1.0)) * length + s
-    return cpsi, spsi
+    st[i, S_DIST] = (st[i, S_LAPS] - (st[i, S_BACK] + 1.0)) * length + st[i, S_S]
 
 
 @numba.njit(**_JIT)
@@ -286,7 +296,9 @@ def refresh(st, cp, pt, surf, tsc, count_laps):
         cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_VX] = st[i, S_VXG] * cy + st[i, S_VYG] * sy
         st[i, S_VY] = st[i, S_VYG] * cy - st[i, S_VXG] * sy
-        track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y], cy, sy, count_laps)
+        _, _, p, q, n, ch, sh = track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y],
+                                             cy, sy, count_laps)
+        track_observed(st, i, pt, surf, tsc, p, q, n, ch, sh)
 
 
 SLIP_MIN_SPEED = 10.0
@@ -612,6 +624,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     # x, y: the same bits), then each sub-step's `track_update` returns the next
     _, _, ch, sh = _piece_local(pt, int(st[i, S_PIECE]), x, y)
     cpsi, spsi = cy * ch + sy * sh, sy * ch - cy * sh
+    p_end, q_end, n_end = int(st[i, S_PIECE]), 0.0, 0.0      # the last walk (track_observed)
+    ch_end, sh_end = ch, sh
     d_done = math.nan
     cd0 = cd1 = 1.0
     sd0 = sd1 = 0.0
@@ -857,8 +871,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         yaw = _wrap(yaw + r * dt)
         cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_TIME] += dt
-        cpsi, spsi = track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, True)
+        cpsi, spsi, p_end, q_end, n_end, ch_end, sh_end = track_update(
+            st, i, cp, pt, surf, tsc, x, y, cy, sy, True)
 
+    if nsub > 0:
+        track_observed(st, i, pt, surf, tsc, p_end, q_end, n_end, ch_end, sh_end)
     st[i, S_X], st[i, S_Y], st[i, S_YAW], st[i, S_R] = x, y, yaw, r
     st[i, S_VXG], st[i, S_VYG] = vxg, vyg
     st[i, S_VX] = vxg * cy + vyg * sy

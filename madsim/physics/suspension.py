@@ -11,6 +11,7 @@ import math
 
 import numba
 
+from madsim.physics import elementary as el
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H, C_IXX, C_IYY,
     C_PACK, C_RIDE0, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
@@ -108,8 +109,14 @@ def on_piece(pt, p, q):
 @numba.njit(inline="always", **_JIT)
 def _road_z(pt, tsc, p, q, n):
     """Road height, m, at distance q along piece p (may run one piece over either end) and
-    lateral offset n (track spec 5.4: linear right edge + banking, as `track_update`)."""
+    lateral offset n (track spec 5.4: linear right edge + banking, as `kernel.track_observed`)."""
     p, q = on_piece(pt, p, q)
+    return _road_z_at(pt, tsc, p, q, n)
+
+
+@numba.njit(inline="always", **_JIT)
+def _road_z_at(pt, tsc, p, q, n):
+    """`_road_z` of a point already on piece p (0 <= q <= its length)."""
     u = min(max(q * pt[p, P_INVLEN], 0.0), 1.0)
     b0, b1 = pt[p, P_B0], pt[p, P_B1]
     tb = pt[p, P_TB0] if b0 == b1 else math.tan(b0 + u * (b1 - b0))
@@ -149,6 +156,42 @@ def relief(pt, surf, tsc, p, q, n, main):
     width, and a side that continues the road's cross slope gets the saw-tooth that follows
     (docs/physics.md). 0 on a smooth road."""
     p, q = on_piece(pt, p, q)
+    base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, p, q, n, main)
+    if a == 0.0:
+        return base
+    return _relief_sum(base, a, math.sin(kt), math.sin(kl), curb, d, bw)
+
+
+@numba.njit(inline="always", **_JIT)
+def _relief_sum(base, a, sin_t, sin_l, curb, d, bw):
+    """`relief` from its `_relief_terms` and the sines of their k t and k l."""
+    if a == 0.0:
+        return base
+    return base + (a * sin_l * d / bw if curb else a * sin_t * sin_l)
+
+
+@numba.njit(**_JIT, _nrt=False)
+def _sines4(x0, x1, x2, x3, y0, y1, y2, y3):
+    """sin of eight arguments (rad, |x| up to 1e5), four at a time in SIMD lanes: `elementary`'s
+    sincos, within 2 ulp of libm's sin (tests/physics/test_elementary.py). The road relief's
+    sines under the four wheels (`wheel_loads`), ~4x cheaper than eight libm calls. Not
+    inlined: inlined in `kernel.advance_car`, its code (even where the road is smooth and it
+    never runs) slows the sub-step by ~15 % (benchmarks/RESULTS.md, "The car sub-step on real
+    tracks")."""
+    lx, ly, sx, sy = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
+    lx[0], lx[1], lx[2], lx[3] = x0, x1, x2, x3
+    ly[0], ly[1], ly[2], ly[3] = y0, y1, y2, y3
+    for k in range(4):
+        sx[k] = el.sincos(lx[k])[0]
+        sy[k] = el.sincos(ly[k])[0]
+    return sx[0], sx[1], sx[2], sx[3], sy[0], sy[1], sy[2], sy[3]
+
+
+@numba.njit(inline="always", **_JIT)
+def _relief_terms(pt, surf, tsc, p, q, n, main):
+    """`relief` of a point already on piece p (0 <= q <= its length) without its sines:
+    (base, a, k t, k l, curb, d, bw) with relief = base + a sin(k l) d / bw on a curb, else
+    base + a sin(k t) sin(k l) (names as in `relief`; a = 0: no roughness, relief = base)."""
     w = tsc[T_WIDTH]
     t = n + 0.5 * w                      # TORCS's toRight on the road
     m = 0.0                              # the zone's centre line, m left of the road's
@@ -194,13 +237,8 @@ def relief(pt, surf, tsc, p, q, n, main):
     if curb:
         base = d * rise
     a = surf[j, 2]
-    if a == 0.0:
-        return base
     k = surf[j, 3]
-    wave = math.sin(k * q * (1.0 - pt[p, P_CURV] * m))
-    if curb:
-        return base + a * wave * d / bw
-    return base + a * math.sin(k * t) * wave
+    return base, a, k * t, k * q * (1.0 - pt[p, P_CURV] * m), curb, d, bw
 
 
 @numba.njit(inline="always", **_JIT)
@@ -209,6 +247,17 @@ def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
     along the track frame), without curbs or roughness."""
     xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
     return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi)
+
+
+@numba.njit(inline="always", **_JIT)
+def _wheel_road_terms(cp, pt, surf, tsc, i, k, p, q, n, cpsi, spsi):
+    """Under wheel k of car i (CG at p, q, n: `_cg_on_piece`; (cpsi, spsi): cos, sin of yaw -
+    track heading): the smooth road's height (m) and the relief's `_relief_terms`."""
+    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+    pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
+    nk = n + xk * spsi + yk * cpsi
+    base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, pk, qk, nk, False)
+    return _road_z_at(pt, tsc, pk, qk, nk), base, a, kt, kl, curb, d, bw
 
 
 @numba.njit(inline="always", **_JIT)
@@ -227,11 +276,23 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0
     mask = 0
+    # the road under each wheel (m): the smooth plane and the relief's zone per wheel (branches),
+    # then, where a surface is rough, the relief's eight sines at once (`_sines4`)
+    z0, b0, a0, t0, l0, c0, d0, w0 = _wheel_road_terms(cp, pt, surf, tsc, i, 0, p, q, n, cpsi, spsi)
+    z1, b1, a1, t1, l1, c1, d1, w1 = _wheel_road_terms(cp, pt, surf, tsc, i, 1, p, q, n, cpsi, spsi)
+    z2, b2, a2, t2, l2, c2, d2, w2 = _wheel_road_terms(cp, pt, surf, tsc, i, 2, p, q, n, cpsi, spsi)
+    z3, b3, a3, t3, l3, c3, d3, w3 = _wheel_road_terms(cp, pt, surf, tsc, i, 3, p, q, n, cpsi, spsi)
+    if a0 != 0.0 or a1 != 0.0 or a2 != 0.0 or a3 != 0.0:
+        l0, l1, l2, l3, t0, t1, t2, t3 = _sines4(l0, l1, l2, l3, t0, t1, t2, t3)
+        b0 = _relief_sum(b0, a0, t0, l0, c0, d0, w0)
+        b1 = _relief_sum(b1, a1, t1, l1, c1, d1, w1)
+        b2 = _relief_sum(b2, a2, t2, l2, c2, d2, w2)
+        b3 = _relief_sum(b3, a3, t3, l3, c3, d3, w3)
+    l_z = el.lanes4()
+    l_z[0], l_z[1], l_z[2], l_z[3] = z0 + b0, z1 + b1, z2 + b2, z3 + b3
     road_fr = road_lr = 0.0       # front minus rear, left minus right sums of the road heights
     for k in range(4):
-        xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-        qk, nk = q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi
-        road = _road_z(pt, tsc, p, qk, nk) + relief(pt, surf, tsc, p, qk, nk, False)
+        road = l_z[k]
         road_fr += road if k < 2 else -road
         road_lr += road if k % 2 == 1 else -road
         ride = zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr - road

@@ -16,6 +16,11 @@ Then (issue 12's sand round) the rolling resistance's speed clamp as TORCS's Sim
 (a crawling car loses v^2 of its speed a step): six_contact, four_wd, vec_traffic and env_ts
 moved, one_car kept its bits.
 
+Then (issue 13, session 9) the road relief's sines under the wheels by `physics.elementary`'s
+sincos (within 2 ulp of libm's): the five scenarios above, all on madsim's tracks, kept their
+bits; `rough_track` (g-track-1, road roughness under every wheel) was added, recorded from that
+kernel (main's a5a8956 gives another digest: rounding only).
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
@@ -23,7 +28,8 @@ tests/physics/test_bit_identity.py`); a change of the physics that is meant to m
 trajectories updates them in the same commit and says so. Covered: one car following the line,
 six cars in contact on a 5 m street with random controls (gears, reverse, brakes), a 4WD car
 (155-DTM: centre viscous coupler, limited-slip axles) on random controls, make_vec with four
-traffic cars per episode, and a MadrasEnv with a T-S (PID) action space.
+traffic cars per episode, a MadrasEnv with a T-S (PID) action space, and a TORCS car on a TORCS
+track with road roughness.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ EXPECTED = {
     "four_wd": "69964f4a92f29c72b23d71b548fe58e70abc58f0da318c1c893d7f9986d562ef",
     "vec_traffic": "40a91837412a39f556e7f2cb32665ab6073819514d632488de3c2c6f9d799a83",
     "env_ts": "b13fcde1451ecc7d0caaa42bd9843081caefef5397d761b933e71eb28cd02dbc",
+    "rough_track": "b8a4563ca3ad0bf151ed53fbdb847958ad78b3508aedb8e7fa2c1aecc04b0171",
 }
 
 
@@ -63,6 +70,20 @@ def one_car() -> str:
         u[:, 0] = np.clip((angle - 0.5 * w.n / (w.track.width / 2)) / 0.366519, -1, 1)
         u[:, 1] = np.clip((30.0 - w.vx) / 3.0, 0, 1)
         u[:, 2] = np.clip((w.vx - 30.0) / 3.0, 0, 1)
+        w.step(u)
+    return _hash(w.state)
+
+
+def rough_track() -> str:
+    """A real TORCS track and car: road roughness under every wheel (g-track-1's tarmac)."""
+    w = World(load_track("g-track-1"), [load_car("car1-trb1")], np.random.default_rng(0))
+    w.reset(np.array([[10.0, 1.0, 15.0]]), gears=2)
+    u = np.array([[0.0, 0.0, 0.0, 2.0, 0.0]])
+    for t in range(300):
+        angle = (w.track_heading - w.yaw + math.pi) % (2 * math.pi) - math.pi
+        u[:, 0] = np.clip((angle - 0.5 * w.n / (w.track.width / 2)) / 0.366519, -1, 1)
+        u[:, 1] = np.clip((25.0 - w.vx) / 3.0, 0, 1)
+        u[:, 3] = 2.0 if t < 100 else 3.0
         w.step(u)
     return _hash(w.state)
 
@@ -128,7 +149,7 @@ def env_ts() -> str:
     return _hash(*parts)
 
 
-SCENARIOS = {"one_car": one_car, "six_contact": six_contact, "four_wd": four_wd,
+SCENARIOS = {"one_car": one_car, "rough_track": rough_track, "six_contact": six_contact, "four_wd": four_wd,
              "vec_traffic": vec_traffic, "env_ts": env_ts}
 
 

@@ -76,6 +76,24 @@ def test_sincos_within_2_ulp_up_to_100_rad():
         assert err.max() <= 2e-16
 
 
+def test_sin_within_2_ulp_up_to_1e5_rad():
+    """The road relief's arguments (`suspension.relief`: wave number up to ~80 rad/m times the
+    distance along a piece, hundreds of metres): sin over [100, 1e5] rad and the quadrant
+    edges there, within 2 ulp where |sin| > 1e-3 and within 2e-16 absolute everywhere."""
+    rng = np.random.default_rng(3)
+    edges = np.pi / 2 * np.array([64.0, 1001.0, 20001.0, 63661.0])
+    x = np.concatenate([rng.uniform(100.0, 1e5, 1500), -rng.uniform(100.0, 1e5, 300),
+                        np.nextafter(edges, 0.0), np.nextafter(edges, 1e6)])
+    s, c = np.empty_like(x), np.empty_like(x)
+    _sincos_all(x, s, c)
+    ref = [mpmath.sin(mpmath.mpf(v)) for v in x]
+    big = np.abs(np.array([float(v) for v in ref])) > 1e-3
+    ulp = _ulp_error(s, ref)
+    assert ulp[big].max() <= 2.0, (ulp[big].max(), x[big][ulp[big].argmax()])
+    err = np.array([abs(float(mpmath.mpf(a) - b)) for a, b in zip(s, ref)])
+    assert err.max() <= 2e-16
+
+
 @pytest.mark.parametrize("n", [3, 4, 64])
 def test_lanes_give_the_scalar_numbers(n):
     """The vectorised array loop (LLVM packs it into SIMD lanes) and one scalar call per value
