@@ -100,7 +100,9 @@ class Budget:
     steps: env steps per sub-run (times its steps_share), per experiment; lr: PPO learning
     rate; eval_max_ticks: None evaluates with the scenario's own time limit (the paper's), a
     number cuts every evaluation episode after that many 0.02 s ticks (smoke only);
-    rllib_iterations / rllib_batch: Experiment 6's PPO iterations and env steps per iteration."""
+    rllib_iterations / rllib_batch: Experiment 6's PPO iterations and env steps per iteration;
+    rllib_keep_every: keep a copy of exp6's policies every that many iterations
+    (checkpoint-NNNN/, for evaluating earlier points of the run; 0 keeps only the last)."""
 
     name: str
     steps: dict
@@ -115,6 +117,7 @@ class Budget:
     rllib_batch: int = 4000
     rllib_minibatch: int = 500
     rllib_runners: int = 0
+    rllib_keep_every: int = 0
 
 
 BUDGETS = {
@@ -129,6 +132,13 @@ BUDGETS = {
                                          "exp4": 120_000, "exp5": 300_000},
                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
                     rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_runners=1),
+    # 3x short (exp6: 150 iterations, half the paper's), copies of exp6's policies every 30
+    # iterations: about an hour for exp6 on a shared 2-core machine; exp1-exp5 not run at it
+    "medium": Budget(name="medium", steps={"exp1": 1_200_000, "exp2": 750_000, "exp3": 1_200_000,
+                                           "exp4": 360_000, "exp5": 900_000},
+                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
+                     rllib_iterations=150, rllib_batch=4000, rllib_minibatch=500, rllib_runners=1,
+                     rllib_keep_every=30),
     # the paper's scale (RLlib's default 4000 steps per iteration; exp3's 2500 iterations)
     "full": Budget(name="full", steps={e: 10_000_000 for e in ("exp1", "exp2", "exp3", "exp4", "exp5")},
                    num_envs=64, n_steps=64, batch_size=512, n_epochs=10, lr=PAPER_LR,

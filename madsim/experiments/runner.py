@@ -33,7 +33,7 @@ import yaml
 
 from madsim.experiments.registry import BUDGETS, PAPER_NET, SCENARIO_DIR, Experiment, SubRun, experiment
 
-__all__ = ["load_scenario", "run_experiment", "set_path", "subrun_steps"]
+__all__ = ["load_scenario", "rllib_policies", "run_experiment", "set_path", "subrun_steps"]
 
 
 def set_path(cfg: dict, dotted: str, value) -> None:
@@ -126,7 +126,8 @@ def _train_rllib(exp, sub, cfg, run_dir: Path, budget, seed: int, address, log) 
         f"{budget.rllib_batch} env steps, {budget.rllib_runners} env runners")
     t0 = time.time()
     rows = train_rllib(cfg, run_dir, iterations=budget.rllib_iterations, address=address,
-                       checkpoint_every=budget.rllib_iterations, log=log, policies="per_agent",
+                       checkpoint_every=budget.rllib_iterations,
+                       keep_every=budget.rllib_keep_every, log=log, policies="per_agent",
                        num_env_runners=budget.rllib_runners, seed=seed,
                        train_batch_size=budget.rllib_batch, minibatch_size=budget.rllib_minibatch,
                        num_epochs=budget.n_epochs, hidden=PAPER_NET, lr=budget.lr)
@@ -137,13 +138,14 @@ def _train_rllib(exp, sub, cfg, run_dir: Path, budget, seed: int, address, log) 
             "learning_rate": budget.lr}
 
 
-def _rllib_policies(run_dir: Path, cfg: dict) -> dict:
-    """Deterministic policies (obs (d,) -> action) of the RLModules saved in run_dir/checkpoint."""
+def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint") -> dict:
+    """Deterministic policies (obs (d,) -> action) of the RLModules saved in run_dir/checkpoint
+    (or another checkpoint folder of the run, e.g. a kept "checkpoint-0030")."""
     import numpy as np
     import torch
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    root = run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module"
+    root = run_dir / checkpoint / "learner_group" / "learner" / "rl_module"
     policies = {}
     for agent in cfg["agents"]:
         module = RLModule.from_checkpoint(str((root / agent["name"]).resolve()))
@@ -227,7 +229,7 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
         evals = [c for s, c in wanted if s == sub.name] if sub.evaluate else []
         if evals:
             if exp.trainer == "rllib":
-                policies = _rllib_policies(run_dir, cfg)
+                policies = rllib_policies(run_dir, cfg)
             else:
                 from madsim.train.sb3 import load_policy
 

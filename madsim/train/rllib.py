@@ -144,10 +144,13 @@ def result_row(result: Mapping, iteration: int, wall_s: float) -> dict:
 
 
 def train_rllib(config, out_dir, *, iterations: int, address: str | None = None,
-                checkpoint_every: int = 10, log=print, **ppo_kwargs) -> list[dict]:
+                checkpoint_every: int = 10, keep_every: int = 0, log=print,
+                **ppo_kwargs) -> list[dict]:
     """Train `iterations` PPO iterations on `config` and write run folder `out_dir`:
     config.yml (resolved scenario), rllib.csv (one `result_row` per iteration), run.json, and
-    checkpoint/ (RLlib's `algo.save`, every `checkpoint_every` iterations and at the end).
+    checkpoint/ (RLlib's `algo.save`, every `checkpoint_every` iterations and at the end), and
+    with `keep_every` > 0 a kept copy checkpoint-NNNN/ after every `keep_every`-th iteration
+    before the last (NNNN: the iteration, 4 digits).
     address None starts a local Ray instance; else `ray.init(address=address)` joins that
     cluster. Ray is shut down at the end only if it was started here."""
     import ray
@@ -183,6 +186,8 @@ def train_rllib(config, out_dir, *, iterations: int, address: str | None = None,
                     f"{row['episode_return_mean']:.1f}, {row['wall_s']:.0f} s")
                 if i % checkpoint_every == 0 or i == iterations:
                     algo.save(str((run / "checkpoint").resolve()))
+                if keep_every > 0 and i % keep_every == 0 and i < iterations:
+                    algo.save(str((run / f"checkpoint-{i:04d}").resolve()))
         algo.stop()
         (run / "run.json").write_text(json.dumps({
             "iterations": iterations, "address": address, "settings": {
