@@ -100,7 +100,8 @@ class Budget:
     steps: env steps per sub-run (times its steps_share), per experiment; lr: PPO learning
     rate; eval_max_ticks: None evaluates with the scenario's own time limit (the paper's), a
     number cuts every evaluation episode after that many 0.02 s ticks (smoke only);
-    rllib_iterations / rllib_batch: Experiment 6's PPO iterations and env steps per iteration;
+    rllib_*: Experiment 6's RLlib PPO: iterations, env steps per iteration, minibatch, epochs
+    and learning rate (defaults: RLlib's PPO defaults, which the paper used), env runners;
     rllib_keep_every: keep a copy of exp6's policies every that many iterations
     (checkpoint-NNNN/, for evaluating earlier points of the run; 0 keeps only the last)."""
 
@@ -115,7 +116,9 @@ class Budget:
     eval_max_ticks: int | None = None
     rllib_iterations: int = 1
     rllib_batch: int = 4000
-    rllib_minibatch: int = 500
+    rllib_minibatch: int = 128
+    rllib_epochs: int = 30
+    rllib_lr: float = PAPER_LR
     rllib_runners: int = 0
     rllib_keep_every: int = 0
 
@@ -126,23 +129,23 @@ BUDGETS = {
     "smoke": Budget(name="smoke", steps={e: 256 for e in ("exp1", "exp2", "exp3", "exp4", "exp5")},
                     num_envs=8, n_steps=32, batch_size=64, n_epochs=1, lr=3e-4,
                     eval_episodes=100, eval_max_ticks=40, rllib_iterations=1, rllib_batch=200,
-                    rllib_minibatch=100, rllib_runners=0),
+                    rllib_minibatch=100, rllib_epochs=1, rllib_lr=3e-4, rllib_runners=0),
     # about 12 minutes per experiment on a shared 2-core machine (see docs/paper-results.md)
     "short": Budget(name="short", steps={"exp1": 400_000, "exp2": 250_000, "exp3": 400_000,
                                          "exp4": 120_000, "exp5": 300_000},
                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
-                    rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_runners=1),
-    # 3x short (exp6: 150 iterations, half the paper's), copies of exp6's policies every 30
-    # iterations: about an hour for exp6 on a shared 2-core machine; exp1-exp5 not run at it
+                    rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_epochs=5,
+                    rllib_lr=3e-4, rllib_runners=1),
+    # 3x short; exp6: the paper's PPO (RLlib's defaults) for 100 of its 300 iterations, its
+    # policies kept every 25: about 75 minutes on a shared 2-core machine; exp1-5 not run at it
     "medium": Budget(name="medium", steps={"exp1": 1_200_000, "exp2": 750_000, "exp3": 1_200_000,
                                            "exp4": 360_000, "exp5": 900_000},
                      num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
-                     rllib_iterations=150, rllib_batch=4000, rllib_minibatch=500, rllib_runners=1,
-                     rllib_keep_every=30),
+                     rllib_iterations=100, rllib_runners=1, rllib_keep_every=25),
     # the paper's scale (RLlib's default 4000 steps per iteration; exp3's 2500 iterations)
     "full": Budget(name="full", steps={e: 10_000_000 for e in ("exp1", "exp2", "exp3", "exp4", "exp5")},
                    num_envs=64, n_steps=64, batch_size=512, n_epochs=10, lr=PAPER_LR,
-                   rllib_iterations=300, rllib_batch=4000, rllib_minibatch=500, rllib_runners=8),
+                   rllib_iterations=300, rllib_runners=8),
 }
 
 METRIC_LAP, METRIC_SPEED, METRIC_DONE = "lap_fraction", "avg_speed_kmh", "completion_rate"

@@ -130,12 +130,12 @@ def _train_rllib(exp, sub, cfg, run_dir: Path, budget, seed: int, address, log) 
                        keep_every=budget.rllib_keep_every, log=log, policies="per_agent",
                        num_env_runners=budget.rllib_runners, seed=seed,
                        train_batch_size=budget.rllib_batch, minibatch_size=budget.rllib_minibatch,
-                       num_epochs=budget.n_epochs, hidden=PAPER_NET, lr=budget.lr)
+                       num_epochs=budget.rllib_epochs, hidden=PAPER_NET, lr=budget.rllib_lr)
     wall = time.time() - t0
     steps = rows[-1]["env_steps"] if rows else 0
     return {"env_steps": steps, "train_wall_s": round(wall, 1),
             "steps_per_s": round(steps / wall, 1) if wall > 0 else None,
-            "learning_rate": budget.lr}
+            "learning_rate": budget.rllib_lr}
 
 
 def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint") -> dict:
