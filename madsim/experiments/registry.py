@@ -136,12 +136,14 @@ BUDGETS = {
                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
                     rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_epochs=5,
                     rllib_lr=3e-4, rllib_runners=1),
-    # 3x short; exp6: the paper's PPO (RLlib's defaults) for 100 of its 300 iterations, its
-    # policies kept every 25: about 75 minutes on a shared 2-core machine; exp1-5 not run at it
+    # 3x short; exp6: 100 iterations with short's PPO updates (the paper's 30 epochs of
+    # minibatch 128 take minutes per iteration on a shared 2-core machine), policies kept every
+    # 25: about an hour for exp6 on a shared 2-core machine; exp1-5 not run at it
     "medium": Budget(name="medium", steps={"exp1": 1_200_000, "exp2": 750_000, "exp3": 1_200_000,
                                            "exp4": 360_000, "exp5": 900_000},
                      num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
-                     rllib_iterations=100, rllib_runners=1, rllib_keep_every=25),
+                     rllib_iterations=100, rllib_minibatch=500, rllib_epochs=5, rllib_lr=3e-4,
+                     rllib_runners=1, rllib_keep_every=25),
     # the paper's scale (RLlib's default 4000 steps per iteration; exp3's 2500 iterations)
     "full": Budget(name="full", steps={e: 10_000_000 for e in ("exp1", "exp2", "exp3", "exp4", "exp5")},
                    num_envs=64, n_steps=64, batch_size=512, n_epochs=10, lr=PAPER_LR,

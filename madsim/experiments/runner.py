@@ -138,9 +138,12 @@ def _train_rllib(exp, sub, cfg, run_dir: Path, budget, seed: int, address, log) 
             "learning_rate": budget.rllib_lr}
 
 
-def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint") -> dict:
-    """Deterministic policies (obs (d,) -> action) of the RLModules saved in run_dir/checkpoint
-    (or another checkpoint folder of the run, e.g. a kept "checkpoint-0030")."""
+def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint",
+                   rng=None) -> dict:
+    """Policies (obs (d,) -> action in [-1, 1]) of the RLModules saved in run_dir/checkpoint
+    (or another checkpoint folder of the run, e.g. a kept "checkpoint-0025"): the Gaussian's
+    mean (deterministic, rng None), or an action drawn from it with the numpy Generator `rng`
+    (as RLlib 0.8's `compute_action` did by default), clipped to [-1, 1]."""
     import numpy as np
     import torch
     from ray.rllib.core.rl_module.rl_module import RLModule
@@ -154,7 +157,11 @@ def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint") -> 
         def act(obs, module=module, dim=dim):
             with torch.no_grad():
                 out = module.forward_inference({"obs": torch.as_tensor(obs[None], dtype=torch.float32)})
-            return np.clip(out["action_dist_inputs"][0, :dim].numpy(), -1.0, 1.0).astype(np.float32)
+            inputs = out["action_dist_inputs"][0].numpy().astype(np.float64)
+            action = inputs[:dim]
+            if rng is not None:            # DiagGaussian inputs: means, then log standard deviations
+                action = action + np.exp(inputs[dim:2 * dim]) * rng.standard_normal(dim)
+            return np.clip(action, -1.0, 1.0).astype(np.float32)
 
         policies[agent["name"]] = act
     return policies

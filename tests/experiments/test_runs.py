@@ -129,3 +129,16 @@ def test_exp6_same_seed_and_hash_seed_same_table(tmp_path):
     assert _table_lines(outs[0]) == _table_lines(outs[1])
     record = json.loads((outs[0] / "experiment.json").read_text())
     assert record["command"].startswith("PYTHONHASHSEED=0 madsim experiment run exp6 ")
+    # the run's policies, as the mean action and drawn from the Gaussian with a passed Generator
+    from madsim.experiments.runner import rllib_policies
+
+    cfg = load_scenario(EXPERIMENTS["exp6"].subruns[0])
+    obs = np.linspace(-0.5, 0.5, 62).astype(np.float32)
+    mean = rllib_policies(outs[0] / "marl", cfg)["agent_1"](obs)
+    drawn = []
+    for _ in range(2):
+        policy = rllib_policies(outs[0] / "marl", cfg, rng=np.random.default_rng(5))["agent_1"]
+        drawn.append([policy(obs), policy(obs)])
+    assert mean.shape == (2,) and np.all(np.abs(mean) <= 1.0)
+    assert np.array_equal(drawn[0], drawn[1])                      # same seed, same draws
+    assert not np.array_equal(drawn[0][0], drawn[0][1]) and not np.array_equal(drawn[0][0], mean)
