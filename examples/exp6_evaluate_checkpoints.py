@@ -9,8 +9,8 @@ episodes ended and the median step of the collisions.
     PYTHONPATH=. python examples/exp6_evaluate_checkpoints.py OUT --stochastic 0  # sampled actions
 
 `--stochastic SEED` draws each action from the policy's Gaussian (numpy Generator seeded
-SEED) instead of taking its mean: RLlib 0.8's `compute_action`, which the paper's authors
-may have evaluated with, sampled by default.
+SEED) instead of taking its mean, as MADRaS evaluated (`rllib rollout`, whose compute_action
+explores by default) and as the experiment's table does (seeded with the run's seed).
 """
 
 from __future__ import annotations
@@ -33,12 +33,14 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--stochastic", type=int, default=None, metavar="SEED",
                         help="sample actions with this seed (default: the Gaussian's mean)")
+    parser.add_argument("--only", nargs="+", default=None, metavar="FOLDER",
+                        help="these checkpoint folders only (e.g. checkpoint-0050 checkpoint)")
     args = parser.parse_args()
     exp = experiment("exp6")
     sub = exp.subruns[0]
     condition = exp.conditions[0]
     run_dir = args.out / sub.name
-    folders = sorted(p.name for p in run_dir.glob("checkpoint-*")) + ["checkpoint"]
+    folders = args.only or sorted(p.name for p in run_dir.glob("checkpoint-*")) + ["checkpoint"]
     cfg = load_scenario(sub)
     ecfg = load_scenario(sub, condition.overrides)
     names = [a["name"] for a in cfg["agents"]]

@@ -78,6 +78,7 @@ class Experiment:
     conditions: tuple[Condition, ...]
     table: PaperTable
     trainer: str = "sb3"                       # sb3 (vector env) or rllib (two learners)
+    sampled_actions: bool = False              # evaluate actions drawn from the policy's Gaussian
     notes: tuple[str, ...] = ()
 
     def subrun(self, name: str) -> SubRun:
@@ -347,9 +348,12 @@ def _exp6() -> Experiment:
                          paper={row: (83.3,)}, cells={(row, col): ("marl", "final stage",
                                                                     "joint_success_rate")},
                          percent=(col,)),
-        trainer="rllib",
+        trainer="rllib", sampled_actions=True,
         notes=("Evaluated with the last curriculum stage (parking 30-35 m, gap 2.76-3.46 m). "
-               "A learner has passed when it is 5 m past the farthest parking spot.",))
+               "A learner has passed when it is 5 m past the farthest parking spot.",
+               "Actions drawn from each policy's Gaussian (a numpy Generator seeded with the run's "
+               "seed), as MADRaS evaluated with `rllib rollout`, whose compute_action explores "
+               "by default (RLlib 0.8); the Gaussian's mean is the deterministic alternative."))
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (_exp1(), _exp2(), _exp3(), _exp4(), _exp5(), _exp6())}

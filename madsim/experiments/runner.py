@@ -14,7 +14,8 @@ OUT/
 
 Single-learner sub-runs train with PPO (stable-baselines3) on the batched vector env; Experiment
 6 trains two policies with RLlib on Ray (`address` joins an existing Ray cluster; None starts
-Ray locally). Training seed: `seed` for every sub-run; evaluation episode k: seed 1,000,000 + k.
+Ray locally). Training seed: `seed` for every sub-run; evaluation episode k: seed 1,000,000 + k;
+an experiment with `sampled_actions` (exp6) draws its actions with a Generator seeded `seed`.
 """
 
 from __future__ import annotations
@@ -223,7 +224,9 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
                                        f"--seed {seed} --out {out}",
               "address": address, "notes": list(exp.notes), "subruns": {},
               "evaluation": {"episodes": b.eval_episodes, "seeds": "1000000 + k",
-                             "max_ticks": b.eval_max_ticks, "actions": "deterministic"},
+                             "max_ticks": b.eval_max_ticks,
+                             "actions": (f"sampled (numpy Generator seeded {seed})"
+                                         if exp.sampled_actions else "deterministic")},
               "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     conditions = {c.name: c for c in exp.conditions}
     wanted = exp.evaluations()
@@ -236,7 +239,10 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
         evals = [c for s, c in wanted if s == sub.name] if sub.evaluate else []
         if evals:
             if exp.trainer == "rllib":
-                policies = rllib_policies(run_dir, cfg)
+                import numpy as np
+
+                rng = np.random.default_rng(seed) if exp.sampled_actions else None
+                policies = rllib_policies(run_dir, cfg, rng=rng)
             else:
                 from madsim.train.sb3 import load_policy
 
