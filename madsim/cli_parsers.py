@@ -266,13 +266,15 @@ def add_train_parser(sub) -> None:
 
 def add_experiment_parser(sub) -> None:
     """`madsim experiment` (list, run, report)."""
+    from madsim.experiments.registry import BUDGETS
+
     e = sub.add_parser("experiment", help="the MADRaS paper's six experiments: list, run, report")
     esub = e.add_subparsers(dest="experiment_command", required=True)
     ls = esub.add_parser("list", help="the experiments, their sub-runs and the budgets")
     ls.set_defaults(func=_handler("madsim.experiments.commands:cmd_list"))
     r = esub.add_parser("run", help="train, evaluate over 100 episodes, write a result folder")
     r.add_argument("name", help="exp1..exp6, or a sub-run such as exp1-sab, exp1-ts, exp2-random")
-    r.add_argument("--budget", choices=["smoke", "short", "full"], default="smoke")
+    r.add_argument("--budget", choices=list(BUDGETS), default="smoke")
     r.add_argument("--out", default=None, help="result folder (default runs/NAME-BUDGET-seedS)")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--address", default=None,

@@ -3,7 +3,7 @@
 result folder), and the report (the paper's tables with madsim's numbers beside them).
 
     madsim experiment list
-    madsim experiment run exp1 --budget smoke|short|full [--out DIR] [--seed S] [--address ADDR]
+    madsim experiment run exp1 --budget smoke|short|medium|full [--out DIR] [--seed S] [--address ADDR]
     madsim experiment report DIR
 
 Training needs the `train` extra (exp1-exp5) and the `rllib` extra (exp6); nothing heavy is

@@ -78,6 +78,7 @@ class Experiment:
     conditions: tuple[Condition, ...]
     table: PaperTable
     trainer: str = "sb3"                       # sb3 (vector env) or rllib (two learners)
+    sampled_actions: bool = False              # evaluate actions drawn from the policy's Gaussian
     notes: tuple[str, ...] = ()
 
     def subrun(self, name: str) -> SubRun:
@@ -100,7 +101,10 @@ class Budget:
     steps: env steps per sub-run (times its steps_share), per experiment; lr: PPO learning
     rate; eval_max_ticks: None evaluates with the scenario's own time limit (the paper's), a
     number cuts every evaluation episode after that many 0.02 s ticks (smoke only);
-    rllib_iterations / rllib_batch: Experiment 6's PPO iterations and env steps per iteration."""
+    rllib_*: Experiment 6's RLlib PPO: iterations, env steps per iteration, minibatch, epochs
+    and learning rate (defaults: RLlib's PPO defaults, which the paper used), env runners;
+    rllib_keep_every: keep a copy of exp6's policies every that many iterations
+    (checkpoint-NNNN/, for evaluating earlier points of the run; 0 keeps only the last)."""
 
     name: str
     steps: dict
@@ -113,8 +117,11 @@ class Budget:
     eval_max_ticks: int | None = None
     rllib_iterations: int = 1
     rllib_batch: int = 4000
-    rllib_minibatch: int = 500
+    rllib_minibatch: int = 128
+    rllib_epochs: int = 30
+    rllib_lr: float = PAPER_LR
     rllib_runners: int = 0
+    rllib_keep_every: int = 0
 
 
 BUDGETS = {
@@ -123,16 +130,25 @@ BUDGETS = {
     "smoke": Budget(name="smoke", steps={e: 256 for e in ("exp1", "exp2", "exp3", "exp4", "exp5")},
                     num_envs=8, n_steps=32, batch_size=64, n_epochs=1, lr=3e-4,
                     eval_episodes=100, eval_max_ticks=40, rllib_iterations=1, rllib_batch=200,
-                    rllib_minibatch=100, rllib_runners=0),
+                    rllib_minibatch=100, rllib_epochs=1, rllib_lr=3e-4, rllib_runners=0),
     # about 12 minutes per experiment on a shared 2-core machine (see docs/paper-results.md)
     "short": Budget(name="short", steps={"exp1": 400_000, "exp2": 250_000, "exp3": 400_000,
                                          "exp4": 120_000, "exp5": 300_000},
                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
-                    rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_runners=1),
+                    rllib_iterations=40, rllib_batch=4000, rllib_minibatch=500, rllib_epochs=5,
+                    rllib_lr=3e-4, rllib_runners=1),
+    # 3x short; exp6: 100 iterations with short's PPO updates (the paper's 30 epochs of
+    # minibatch 128 take minutes per iteration on a shared 2-core machine), policies kept every
+    # 25: about an hour for exp6 on a shared 2-core machine; exp1-5 not run at it
+    "medium": Budget(name="medium", steps={"exp1": 1_200_000, "exp2": 750_000, "exp3": 1_200_000,
+                                           "exp4": 360_000, "exp5": 900_000},
+                     num_envs=32, n_steps=64, batch_size=512, n_epochs=5, lr=3e-4,
+                     rllib_iterations=100, rllib_minibatch=500, rllib_epochs=5, rllib_lr=3e-4,
+                     rllib_runners=1, rllib_keep_every=25),
     # the paper's scale (RLlib's default 4000 steps per iteration; exp3's 2500 iterations)
     "full": Budget(name="full", steps={e: 10_000_000 for e in ("exp1", "exp2", "exp3", "exp4", "exp5")},
                    num_envs=64, n_steps=64, batch_size=512, n_epochs=10, lr=PAPER_LR,
-                   rllib_iterations=300, rllib_batch=4000, rllib_minibatch=500, rllib_runners=8),
+                   rllib_iterations=300, rllib_runners=8),
 }
 
 METRIC_LAP, METRIC_SPEED, METRIC_DONE = "lap_fraction", "avg_speed_kmh", "completion_rate"
@@ -332,9 +348,12 @@ def _exp6() -> Experiment:
                          paper={row: (83.3,)}, cells={(row, col): ("marl", "final stage",
                                                                     "joint_success_rate")},
                          percent=(col,)),
-        trainer="rllib",
+        trainer="rllib", sampled_actions=True,
         notes=("Evaluated with the last curriculum stage (parking 30-35 m, gap 2.76-3.46 m). "
-               "A learner has passed when it is 5 m past the farthest parking spot.",))
+               "A learner has passed when it is 5 m past the farthest parking spot.",
+               "Actions drawn from each policy's Gaussian (a numpy Generator seeded with the run's "
+               "seed), as MADRaS evaluated with `rllib rollout`, whose compute_action explores "
+               "by default (RLlib 0.8); the Gaussian's mean is the deterministic alternative."))
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (_exp1(), _exp2(), _exp3(), _exp4(), _exp5(), _exp6())}

@@ -14,7 +14,8 @@ OUT/
 
 Single-learner sub-runs train with PPO (stable-baselines3) on the batched vector env; Experiment
 6 trains two policies with RLlib on Ray (`address` joins an existing Ray cluster; None starts
-Ray locally). Training seed: `seed` for every sub-run; evaluation episode k: seed 1,000,000 + k.
+Ray locally). Training seed: `seed` for every sub-run; evaluation episode k: seed 1,000,000 + k;
+an experiment with `sampled_actions` (exp6) draws its actions with a Generator seeded `seed`.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ import yaml
 
 from madsim.experiments.registry import BUDGETS, PAPER_NET, SCENARIO_DIR, Experiment, SubRun, experiment
 
-__all__ = ["load_scenario", "run_experiment", "set_path", "subrun_steps"]
+__all__ = ["load_scenario", "rllib_policies", "run_experiment", "set_path", "subrun_steps"]
 
 
 def set_path(cfg: dict, dotted: str, value) -> None:
@@ -126,24 +127,29 @@ def _train_rllib(exp, sub, cfg, run_dir: Path, budget, seed: int, address, log) 
         f"{budget.rllib_batch} env steps, {budget.rllib_runners} env runners")
     t0 = time.time()
     rows = train_rllib(cfg, run_dir, iterations=budget.rllib_iterations, address=address,
-                       checkpoint_every=budget.rllib_iterations, log=log, policies="per_agent",
+                       checkpoint_every=budget.rllib_iterations,
+                       keep_every=budget.rllib_keep_every, log=log, policies="per_agent",
                        num_env_runners=budget.rllib_runners, seed=seed,
                        train_batch_size=budget.rllib_batch, minibatch_size=budget.rllib_minibatch,
-                       num_epochs=budget.n_epochs, hidden=PAPER_NET, lr=budget.lr)
+                       num_epochs=budget.rllib_epochs, hidden=PAPER_NET, lr=budget.rllib_lr)
     wall = time.time() - t0
     steps = rows[-1]["env_steps"] if rows else 0
     return {"env_steps": steps, "train_wall_s": round(wall, 1),
             "steps_per_s": round(steps / wall, 1) if wall > 0 else None,
-            "learning_rate": budget.lr}
+            "learning_rate": budget.rllib_lr}
 
 
-def _rllib_policies(run_dir: Path, cfg: dict) -> dict:
-    """Deterministic policies (obs (d,) -> action) of the RLModules saved in run_dir/checkpoint."""
+def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint",
+                   rng=None) -> dict:
+    """Policies (obs (d,) -> action in [-1, 1]) of the RLModules saved in run_dir/checkpoint
+    (or another checkpoint folder of the run, e.g. a kept "checkpoint-0025"): the Gaussian's
+    mean (deterministic, rng None), or an action drawn from it with the numpy Generator `rng`
+    (as RLlib 0.8's `compute_action` did by default), clipped to [-1, 1]."""
     import numpy as np
     import torch
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    root = run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module"
+    root = run_dir / checkpoint / "learner_group" / "learner" / "rl_module"
     policies = {}
     for agent in cfg["agents"]:
         module = RLModule.from_checkpoint(str((root / agent["name"]).resolve()))
@@ -152,7 +158,11 @@ def _rllib_policies(run_dir: Path, cfg: dict) -> dict:
         def act(obs, module=module, dim=dim):
             with torch.no_grad():
                 out = module.forward_inference({"obs": torch.as_tensor(obs[None], dtype=torch.float32)})
-            return np.clip(out["action_dist_inputs"][0, :dim].numpy(), -1.0, 1.0).astype(np.float32)
+            inputs = out["action_dist_inputs"][0].numpy().astype(np.float64)
+            action = inputs[:dim]
+            if rng is not None:            # DiagGaussian inputs: means, then log standard deviations
+                action = action + np.exp(inputs[dim:2 * dim]) * rng.standard_normal(dim)
+            return np.clip(action, -1.0, 1.0).astype(np.float32)
 
         policies[agent["name"]] = act
     return policies
@@ -214,7 +224,9 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
                                        f"--seed {seed} --out {out}",
               "address": address, "notes": list(exp.notes), "subruns": {},
               "evaluation": {"episodes": b.eval_episodes, "seeds": "1000000 + k",
-                             "max_ticks": b.eval_max_ticks, "actions": "deterministic"},
+                             "max_ticks": b.eval_max_ticks,
+                             "actions": (f"sampled (numpy Generator seeded {seed})"
+                                         if exp.sampled_actions else "deterministic")},
               "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     conditions = {c.name: c for c in exp.conditions}
     wanted = exp.evaluations()
@@ -227,7 +239,10 @@ def run_experiment(name: str, *, budget: str = "smoke", out, seed: int = 0,
         evals = [c for s, c in wanted if s == sub.name] if sub.evaluate else []
         if evals:
             if exp.trainer == "rllib":
-                policies = _rllib_policies(run_dir, cfg)
+                import numpy as np
+
+                rng = np.random.default_rng(seed) if exp.sampled_actions else None
+                policies = rllib_policies(run_dir, cfg, rng=rng)
             else:
                 from madsim.train.sb3 import load_policy
 

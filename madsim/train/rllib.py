@@ -12,7 +12,14 @@ small subclass (`MadsimRllibEnv`) that fixes two things for madsim:
 
 `ppo_config` builds the PPO configuration: one policy (RLModule) per agent (`policies=
 "per_agent"`, the default) or one shared by all agents (`"shared"`, needs equal spaces),
-`num_env_runners` rollout workers (Ray actors, one process each). `train_rllib` runs it on a
+`num_env_runners` rollout workers (Ray actors, one process each). The MADRaS paper trained
+with RLlib's PPO of its time (ray 0.8: lr 5e-5, 4000 steps per iteration, minibatch 128, 30
+epochs, gamma 0.99, lambda 1.0, clip 0.3, KL 0.2, no entropy bonus), whose value function had
+its own network (`vf_share_layers: False`) and whose `vf_clip_param` (10) bounded the value's
+step per update. RLlib 2.x shares the encoder by default and reuses `vf_clip_param` as a clamp
+of the squared value error, which leaves no gradient for any sample whose error exceeds 3.2
+(madsim's returns are hundreds): `ppo_config` keeps the value network separate and the value
+loss unclipped (`vf_clip_param` inf), the nearer of RLlib 2.x's options to the paper's. `train_rllib` runs it on a
 local Ray instance (`address=None`: started here with `num_env_runners + 1` logical CPUs) or
 joins an existing Ray cluster (`address="auto"` on a cluster node, or "ray://head:10001"), which
 is how training uses more than one machine (docs/training.md).
@@ -88,7 +95,8 @@ def ppo_config(config, *, policies: str = "per_agent", num_env_runners: int = 2,
                hidden: tuple[int, ...] = (64, 64), lr: float = 3e-4, gamma: float = 0.99):
     """An RLlib `PPOConfig` for the multi-agent scenario `config` (path, mapping or
     ScenarioConfig). Batch sizes count env steps of one agent's module (RLlib's
-    `train_batch_size_per_learner`)."""
+    `train_batch_size_per_learner`). Policy and value function: separate MLPs of `hidden`
+    tanh units, value loss unclipped (module docstring)."""
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
@@ -121,9 +129,10 @@ def ppo_config(config, *, policies: str = "per_agent", num_env_runners: int = 2,
         .env_runners(num_env_runners=num_env_runners,
                      rollout_fragment_length=rollout_fragment_length)
         .multi_agent(policies=modules, policy_mapping_fn=mapping)
-        .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=list(hidden)))
+        .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=list(hidden),
+                                                   fcnet_activation="tanh", vf_share_layers=False))
         .training(train_batch_size_per_learner=train_batch_size, minibatch_size=minibatch_size,
-                  num_epochs=num_epochs, lr=lr, gamma=gamma)
+                  num_epochs=num_epochs, lr=lr, gamma=gamma, vf_clip_param=float("inf"))
         .debugging(seed=seed)
     )
 
@@ -144,10 +153,13 @@ def result_row(result: Mapping, iteration: int, wall_s: float) -> dict:
 
 
 def train_rllib(config, out_dir, *, iterations: int, address: str | None = None,
-                checkpoint_every: int = 10, log=print, **ppo_kwargs) -> list[dict]:
+                checkpoint_every: int = 10, keep_every: int = 0, log=print,
+                **ppo_kwargs) -> list[dict]:
     """Train `iterations` PPO iterations on `config` and write run folder `out_dir`:
     config.yml (resolved scenario), rllib.csv (one `result_row` per iteration), run.json, and
-    checkpoint/ (RLlib's `algo.save`, every `checkpoint_every` iterations and at the end).
+    checkpoint/ (RLlib's `algo.save`, every `checkpoint_every` iterations and at the end), and
+    with `keep_every` > 0 a kept copy checkpoint-NNNN/ after every `keep_every`-th iteration
+    before the last (NNNN: the iteration, 4 digits).
     address None starts a local Ray instance; else `ray.init(address=address)` joins that
     cluster. Ray is shut down at the end only if it was started here."""
     import ray
@@ -183,6 +195,8 @@ def train_rllib(config, out_dir, *, iterations: int, address: str | None = None,
                     f"{row['episode_return_mean']:.1f}, {row['wall_s']:.0f} s")
                 if i % checkpoint_every == 0 or i == iterations:
                     algo.save(str((run / "checkpoint").resolve()))
+                if keep_every > 0 and i % keep_every == 0 and i < iterations:
+                    algo.save(str((run / f"checkpoint-{i:04d}").resolve()))
         algo.stop()
         (run / "run.json").write_text(json.dumps({
             "iterations": iterations, "address": address, "settings": {

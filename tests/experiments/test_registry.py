@@ -196,3 +196,21 @@ def test_exp6_is_solvable_by_a_pair_that_takes_turns():
         assert all(e["agent_1_steps"] == e["agent_2_steps"] for e in per)
         assert wait or per[4]["agent_2_dones"] == ("Collision",) and per[4]["agent_2_steps"] < 30
     assert rates == {True: 1.0, False: 0.0}
+
+
+def test_every_budget_parses_on_the_cli_and_full_trains_exp6_with_rllibs_ppo_defaults():
+    """`--budget` offers every budget of the registry (medium included); `full`, the paper's
+    scale, trains exp6 with the PPO settings the paper left at RLlib's defaults (its lr 5e-5
+    is RLlib's too)."""
+    from madsim.cli_parsers import build_parser
+
+    parser = build_parser()
+    for name in BUDGETS:
+        assert parser.parse_args(["experiment", "run", "exp6", "--budget", name]).budget == name
+    with pytest.raises(SystemExit):
+        parser.parse_args(["experiment", "run", "exp6", "--budget", "huge"])
+    ppo = pytest.importorskip("ray.rllib.algorithms.ppo").PPOConfig()
+    full = BUDGETS["full"]
+    assert (full.rllib_lr, full.rllib_batch, full.rllib_minibatch, full.rllib_epochs) == (
+        ppo.lr, ppo.train_batch_size, ppo.minibatch_size, ppo.num_epochs)
+    assert BUDGETS["medium"].rllib_iterations > BUDGETS["short"].rllib_iterations

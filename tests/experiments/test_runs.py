@@ -109,7 +109,7 @@ def test_cli_lists_runs_and_reports(tmp_path, capsys):
     assert main(["experiment", "report", str(tmp_path)]) == 2      # not a result folder
 
 
-@pytest.mark.timeout(300)
+@pytest.mark.timeout(400)
 def test_exp6_same_seed_and_hash_seed_same_table(tmp_path):
     """exp6's RLlib training orders some of its work by Python's string hashes: with one seed
     and one PYTHONHASHSEED (as docs/paper-results.md says to run it), two runs give one table."""
@@ -129,3 +129,32 @@ def test_exp6_same_seed_and_hash_seed_same_table(tmp_path):
     assert _table_lines(outs[0]) == _table_lines(outs[1])
     record = json.loads((outs[0] / "experiment.json").read_text())
     assert record["command"].startswith("PYTHONHASHSEED=0 madsim experiment run exp6 ")
+    # the run's policies, as the mean action and drawn from the Gaussian with a passed Generator
+    from madsim.experiments.runner import rllib_policies
+
+    cfg = load_scenario(EXPERIMENTS["exp6"].subruns[0])
+    obs = np.linspace(-0.5, 0.5, 62).astype(np.float32)
+    mean = rllib_policies(outs[0] / "marl", cfg)["agent_1"](obs)
+    drawn = []
+    for _ in range(2):
+        policy = rllib_policies(outs[0] / "marl", cfg, rng=np.random.default_rng(5))["agent_1"]
+        drawn.append([policy(obs), policy(obs)])
+    assert mean.shape == (2,) and np.all(np.abs(mean) <= 1.0)
+    assert np.array_equal(drawn[0], drawn[1])                      # same seed, same draws
+    assert not np.array_equal(drawn[0][0], drawn[0][1]) and not np.array_equal(drawn[0][0], mean)
+    # the table's evaluation drew its actions as `rllib rollout` did (MADRaS's evaluation):
+    # from the Gaussian, with a Generator seeded with the run's seed, not the mean action
+    from madsim.experiments.evaluate import evaluate_pair
+    from madsim.experiments.registry import BUDGETS
+
+    exp = EXPERIMENTS["exp6"]
+    ecfg = load_scenario(exp.subruns[0], exp.conditions[0].overrides)
+    with open(outs[0] / "evaluation.csv", newline="") as f:
+        table = [float(r["agent_1_return"]) for r in csv.DictReader(f)][:20]   # episodes 0-19
+    returns = {}
+    for label, rng in (("sampled", np.random.default_rng(0)), ("mean", None)):
+        _, per = evaluate_pair(rllib_policies(outs[0] / "marl", cfg, rng=rng), ecfg,
+                               episodes=len(table), max_ticks=BUDGETS["smoke"].eval_max_ticks)
+        returns[label] = [e["agent_1_return"] for e in per]
+    assert returns["sampled"] == table and returns["mean"] != table
+    assert record["evaluation"]["actions"].startswith("sampled")

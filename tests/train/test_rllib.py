@@ -107,3 +107,33 @@ def test_one_training_iteration_with_two_rollout_workers(tmp_path):
     assert [int(r["iteration"]) for r in logged] == [1]
     assert (tmp_path / "checkpoint").is_dir() and any((tmp_path / "checkpoint").iterdir())
     assert (tmp_path / "config.yml").is_file() and (tmp_path / "run.json").is_file()
+
+
+def test_value_function_has_its_own_network_and_an_unclipped_loss():
+    """The paper's RLlib PPO (ray 0.8) kept the value function's network apart from the policy's
+    (vf_share_layers False) and only bounded the value's step per update; RLlib 2.x shares the
+    encoder by default and clamps the squared value error at vf_clip_param (10), leaving no
+    gradient once the error exceeds 3.2. The value loss's gradient must not reach the policy,
+    and a value error of 100 must still be learned from."""
+    import torch
+    from ray.rllib.core.columns import Columns
+
+    cfg = ppo_config(BOTTLENECK, num_env_runners=0, hidden=(8, 8))
+    env = MadsimRllibEnv({"config": str(BOTTLENECK)})
+    spaces = {a: (env.observation_spaces[a], env.action_spaces[a]) for a in env.possible_agents}
+    env.close()
+    module = cfg.get_multi_rl_module_spec(spaces=spaces).build()["first"]
+    obs = torch.as_tensor(np.stack([spaces["first"][0].sample() for _ in range(4)]))
+
+    def vf_loss_grads(target):          # RLlib 2.x's value loss: clamp(squared error, 0, vf_clip)
+        module.zero_grad(set_to_none=True)
+        values = module.compute_values({Columns.OBS: obs})
+        torch.clamp((values - target(values)) ** 2, 0, cfg.vf_clip_param).mean().backward()
+        return {id(p) for p in module.parameters() if p.grad is not None and p.grad.any()}
+
+    policy_out = module.forward_train({Columns.OBS: obs})[Columns.ACTION_DIST_INPUTS]
+    policy = {id(p) for p in module.parameters()
+              if torch.autograd.grad(policy_out.sum(), p, retain_graph=True, allow_unused=True)[0] is not None}
+    small = vf_loss_grads(lambda v: v.detach() + 1.0)     # an error of 1: within any clip
+    assert policy and small and not small & policy        # value learning leaves the policy alone
+    assert vf_loss_grads(lambda v: 100.0) == small        # an error of 100 is learned from too
