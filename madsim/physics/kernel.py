@@ -771,10 +771,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- wheel spin (spec 4.10 inertias; brakes stop but never reverse), each axle through
         # its differential: above SPIN_AVG_SPEED TORCS's explicit step on the averaged tyre
         # torques, else the implicit step
-        # a driven wheel keeps the engaged gear's inertia while the clutch is open, as TORCS
-        # 1.3.7 sets it only when the gear changes (SimGearboxUpdate; neutral: the free wheels)
-        i_f = 0.5 * (cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F])
-        i_r = 0.5 * (cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R])
+        if coupled:
+            i_f = 0.5 * (cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F])
+            i_r = 0.5 * (cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R])
+        else:
+            i_f = 0.5 * cp[i, C_IFREE_F]
+            i_r = 0.5 * cp[i, C_IFREE_R]
         # linearised in the slip velocity vt - wR: the wheel's own change and the body's
         # (predicted from the last step's acceleration) both enter, so a steadily accelerating
         # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)
