@@ -61,13 +61,18 @@ def _hash(*arrays) -> str:
     return h.hexdigest()
 
 
+def _steer_to_centre(w) -> np.ndarray:
+    """The steering command of a lane keeper towards the centre line (one value per car)."""
+    angle = (w.track_heading - w.yaw + math.pi) % (2 * math.pi) - math.pi
+    return np.clip((angle - 0.5 * w.n / (w.track.width / 2)) / 0.366519, -1, 1)
+
+
 def one_car() -> str:
     w = World(load_track("madsim-road"), [load_car("madsim-sedan")], np.random.default_rng(0))
     w.reset(np.array([[10.0, 0.0, 20.0]]), gears=3)
     u = np.array([[0.0, 0.0, 0.0, 3.0, 0.0]])
     for _ in range(400):
-        angle = (w.track_heading - w.yaw + math.pi) % (2 * math.pi) - math.pi
-        u[:, 0] = np.clip((angle - 0.5 * w.n / (w.track.width / 2)) / 0.366519, -1, 1)
+        u[:, 0] = _steer_to_centre(w)
         u[:, 1] = np.clip((30.0 - w.vx) / 3.0, 0, 1)
         u[:, 2] = np.clip((w.vx - 30.0) / 3.0, 0, 1)
         w.step(u)
@@ -80,8 +85,7 @@ def rough_track() -> str:
     w.reset(np.array([[10.0, 1.0, 15.0]]), gears=2)
     u = np.array([[0.0, 0.0, 0.0, 2.0, 0.0]])
     for t in range(300):
-        angle = (w.track_heading - w.yaw + math.pi) % (2 * math.pi) - math.pi
-        u[:, 0] = np.clip((angle - 0.5 * w.n / (w.track.width / 2)) / 0.366519, -1, 1)
+        u[:, 0] = _steer_to_centre(w)
         u[:, 1] = np.clip((25.0 - w.vx) / 3.0, 0, 1)
         u[:, 3] = 2.0 if t < 100 else 3.0
         w.step(u)
