@@ -149,6 +149,8 @@ def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint",
     import torch
     from ray.rllib.core.rl_module.rl_module import RLModule
 
+    from madsim.train.threads import torch_threads
+
     root = run_dir / checkpoint / "learner_group" / "learner" / "rl_module"
     policies = {}
     for agent in cfg["agents"]:
@@ -156,7 +158,7 @@ def rllib_policies(run_dir: Path, cfg: dict, checkpoint: str = "checkpoint",
         dim = 2 if agent["action"]["space"] == "TS" else 3
 
         def act(obs, module=module, dim=dim):
-            with torch.no_grad():
+            with torch.no_grad(), torch_threads():     # one thread: see madsim.train.threads
                 out = module.forward_inference({"obs": torch.as_tensor(obs[None], dtype=torch.float32)})
             inputs = out["action_dist_inputs"][0].numpy().astype(np.float64)
             action = inputs[:dim]

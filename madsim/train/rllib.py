@@ -45,6 +45,8 @@ except ModuleNotFoundError as _exc:
                               "pip install 'madsim[train,rllib]'", name=_exc.name) from None
 
 from madsim.envs.config import ScenarioConfig, config_to_dict, load_config
+from madsim.train.threads import TRAINING_THREADS
+from madsim.train.threads import torch_threads as threads
 
 __all__ = ["MadsimRllibEnv", "ppo_config", "result_row", "train_rllib"]
 
@@ -154,14 +156,17 @@ def result_row(result: Mapping, iteration: int, wall_s: float) -> dict:
 
 def train_rllib(config, out_dir, *, iterations: int, address: str | None = None,
                 checkpoint_every: int = 10, keep_every: int = 0, log=print,
-                **ppo_kwargs) -> list[dict]:
+                torch_threads: int = TRAINING_THREADS, **ppo_kwargs) -> list[dict]:
     """Train `iterations` PPO iterations on `config` and write run folder `out_dir`:
     config.yml (resolved scenario), rllib.csv (one `result_row` per iteration), run.json, and
     checkpoint/ (RLlib's `algo.save`, every `checkpoint_every` iterations and at the end), and
     with `keep_every` > 0 a kept copy checkpoint-NNNN/ after every `keep_every`-th iteration
     before the last (NNNN: the iteration, 4 digits).
     address None starts a local Ray instance; else `ray.init(address=address)` joins that
-    cluster. Ray is shut down at the end only if it was started here."""
+    cluster. Ray is shut down at the end only if it was started here. torch_threads: torch's
+    intra-op threads in this process while it samples (0 env runners) and updates
+    (madsim.train.threads: the count changes an update's bits); Ray starts each env runner
+    with one."""
     import ray
     import yaml
 
@@ -179,30 +184,39 @@ def train_rllib(config, out_dir, *, iterations: int, address: str | None = None,
             ray.init(address=address, log_to_driver=False)
     rows: list[dict] = []
     try:
-        algo = ppo_config(cfg, **ppo_kwargs).build_algo()
-        t0 = time.time()
-        with open(run / "rllib.csv", "w", newline="") as f:
-            writer = None
-            for i in range(1, iterations + 1):
-                row = result_row(algo.train(), i, time.time() - t0)
-                rows.append(row)
-                if writer is None:
-                    writer = csv.DictWriter(f, fieldnames=list(row), extrasaction="ignore")
-                    writer.writeheader()
-                writer.writerow(row)
-                f.flush()
-                log(f"iteration {i}: {row['env_steps']} env steps, return "
-                    f"{row['episode_return_mean']:.1f}, {row['wall_s']:.0f} s")
-                if i % checkpoint_every == 0 or i == iterations:
-                    algo.save(str((run / "checkpoint").resolve()))
-                if keep_every > 0 and i % keep_every == 0 and i < iterations:
-                    algo.save(str((run / f"checkpoint-{i:04d}").resolve()))
-        algo.stop()
+        with threads(torch_threads):
+            rows = _iterate(cfg, run, iterations, checkpoint_every, keep_every, log, ppo_kwargs)
         (run / "run.json").write_text(json.dumps({
-            "iterations": iterations, "address": address, "settings": {
-                k: (list(v) if isinstance(v, tuple) else v) for k, v in ppo_kwargs.items()},
+            "iterations": iterations, "address": address, "torch_threads": torch_threads,
+            "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in ppo_kwargs.items()},
             "ray": ray.__version__, "last": rows[-1] if rows else None}, indent=2), encoding="utf-8")
     finally:
         if started:
             ray.shutdown()
+    return rows
+
+
+def _iterate(cfg, run: Path, iterations: int, checkpoint_every: int, keep_every: int, log,
+             ppo_kwargs: dict) -> list[dict]:
+    """train_rllib's loop: build the algorithm, train, write rllib.csv and the checkpoints."""
+    rows: list[dict] = []
+    algo = ppo_config(cfg, **ppo_kwargs).build_algo()
+    t0 = time.time()
+    with open(run / "rllib.csv", "w", newline="") as f:
+        writer = None
+        for i in range(1, iterations + 1):
+            row = result_row(algo.train(), i, time.time() - t0)
+            rows.append(row)
+            if writer is None:
+                writer = csv.DictWriter(f, fieldnames=list(row), extrasaction="ignore")
+                writer.writeheader()
+            writer.writerow(row)
+            f.flush()
+            log(f"iteration {i}: {row['env_steps']} env steps, return "
+                f"{row['episode_return_mean']:.1f}, {row['wall_s']:.0f} s")
+            if i % checkpoint_every == 0 or i == iterations:
+                algo.save(str((run / "checkpoint").resolve()))
+            if keep_every > 0 and i % keep_every == 0 and i < iterations:
+                algo.save(str((run / f"checkpoint-{i:04d}").resolve()))
+    algo.stop()
     return rows

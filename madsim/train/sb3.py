@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from madsim.train.evaluate import EVAL_FIELDS, evaluate_policy, format_table
+from madsim.train.threads import TRAINING_THREADS, torch_threads
 
 __all__ = ["Policy", "TrainError", "TrainSettings", "load_policy", "train"]
 
@@ -83,7 +84,7 @@ class TrainSettings:
     eval_episodes: int = 3
     progress: bool = True
     native_vec: bool | None = None
-    torch_threads: int = 1
+    torch_threads: int = TRAINING_THREADS
     verbose: bool = True
     init_policy: str | None = None     # a policy.zip whose weights the run starts from
 
@@ -129,7 +130,8 @@ class Policy:
         self.action_space = model.action_space
 
     def __call__(self, obs) -> np.ndarray:
-        action, _ = self.model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)
+        with torch_threads():          # one thread: see madsim.train.threads
+            action, _ = self.model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)
         return action
 
 

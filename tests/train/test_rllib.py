@@ -1,6 +1,7 @@
 """Multi-agent PPO on Ray RLlib (extra `rllib`): the env wrapper and one training iteration."""
 
 import csv
+import json
 from typing import ClassVar
 
 import gymnasium
@@ -98,6 +99,9 @@ def test_one_training_iteration_with_two_rollout_workers(tmp_path):
     """One PPO iteration of the two-learner bottleneck on a local Ray instance with 2 rollout
     workers (EnvRunner actors), tiny batch: it samples at least the batch from both agents,
     logs the iteration and leaves a checkpoint."""
+    import torch
+
+    threads_before = torch.get_num_threads()
     rows = train_rllib(BOTTLENECK, tmp_path, iterations=1, num_env_runners=2, train_batch_size=200,
                        minibatch_size=100, num_epochs=1, rollout_fragment_length=50,
                        log=lambda line: None)
@@ -107,6 +111,12 @@ def test_one_training_iteration_with_two_rollout_workers(tmp_path):
     assert [int(r["iteration"]) for r in logged] == [1]
     assert (tmp_path / "checkpoint").is_dir() and any((tmp_path / "checkpoint").iterdir())
     assert (tmp_path / "config.yml").is_file() and (tmp_path / "run.json").is_file()
+    # the update ran on one torch thread (its bits depend on the count), and the caller's
+    # count is back afterwards
+    import torch
+
+    assert json.loads((tmp_path / "run.json").read_text())["torch_threads"] == 1
+    assert torch.get_num_threads() == threads_before
 
 
 def test_value_function_has_its_own_network_and_an_unclipped_loss():
