@@ -771,12 +771,10 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- wheel spin (spec 4.10 inertias; brakes stop but never reverse), each axle through
         # its differential: above SPIN_AVG_SPEED TORCS's explicit step on the averaged tyre
         # torques, else the implicit step
-        if coupled:
-            i_f = 0.5 * (cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F])
-            i_r = 0.5 * (cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R])
-        else:
-            i_f = 0.5 * cp[i, C_IFREE_F]
-            i_r = 0.5 * cp[i, C_IFREE_R]
+        # a driven wheel's inertia is the engaged gear's whatever the clutch (TORCS sets it at
+        # the gear change and keeps it while the clutch is open; neutral's slot is the free one)
+        i_f = 0.5 * (cp[i, C_IDRIVE_F + slot] if driven_f else cp[i, C_IFREE_F])
+        i_r = 0.5 * (cp[i, C_IDRIVE_R + slot] if driven_r else cp[i, C_IFREE_R])
         # linearised in the slip velocity vt - wR: the wheel's own change and the body's
         # (predicted from the last step's acceleration) both enter, so a steadily accelerating
         # car sees exactly the wheel inertia I (not I + dt R^2 dF/ds)

@@ -21,6 +21,10 @@ sincos (within 2 ulp of libm's): the five scenarios above, all on madsim's track
 bits; `rough_track` (g-track-1, road roughness under every wheel) was added, recorded from that
 kernel (main's a5a8956 gives another digest: rounding only).
 
+Then (issue 12, session 10) TORCS's shift inertia: a driven wheel keeps the engaged gear's
+inertia while the clutch is open (it took the free wheel's): six_contact, four_wd, vec_traffic
+and rough_track moved (they shift); one_car and env_ts (no shift) kept their bits.
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
@@ -46,11 +50,11 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
-    "six_contact": "a904b92873cc1d6cd39492d11a94154c6ca5cb9f6dd7803724aec442f9e2d099",
-    "four_wd": "69964f4a92f29c72b23d71b548fe58e70abc58f0da318c1c893d7f9986d562ef",
-    "vec_traffic": "40a91837412a39f556e7f2cb32665ab6073819514d632488de3c2c6f9d799a83",
+    "six_contact": "51300ff788e851765f3aa92f493a525bc3c7a502ab71eb7b41b79f745cf0b7d6",
+    "four_wd": "9b1c1cd06e81b5016bf9b9aff5f423c0e3dbf7307a924b7d793d199c198a075c",
+    "vec_traffic": "7b305ea0b81fffabc623aac067f1373819ef30a469efb127ce204daca7533234",
     "env_ts": "b13fcde1451ecc7d0caaa42bd9843081caefef5397d761b933e71eb28cd02dbc",
-    "rough_track": "b8a4563ca3ad0bf151ed53fbdb847958ad78b3508aedb8e7fa2c1aecc04b0171",
+    "rough_track": "fea9f59d973ed0cf838595fe84f3a49b24a9f24e35d20bc6b890a4dd32bdd17f",
 }
 
 

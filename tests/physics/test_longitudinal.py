@@ -185,10 +185,47 @@ def test_shift_cuts_drive_torque_for_the_shift_time(straight, ph):
         we.append(float(w.engine_speed[0]))
     assert w.gear[0] == 3
     acc = np.diff(v) / 0.02
-    # ticks fully inside the cut: the car coasts (no drive torque, clutch open, free wheels)
+    # ticks fully inside the cut: the car coasts (no drive torque, clutch open; the driven
+    # wheels keep 3rd gear's inertia, 0.24 % of the effective mass: within the tolerance)
     for k in range(2, ticks - 1):
         assert -acc[k] == pytest.approx(coast_decel(car, 0.5 * (v[k] + v[k + 1])), rel=0.02)
     assert np.all(acc[ticks + 2:] > 1.0)       # drive is back after the shift time
+
+
+@pytest.mark.parametrize("target", [1, 3, 0])
+def test_driven_wheels_keep_the_engaged_gears_inertia_while_the_clutch_is_open(straight, ph, target):
+    # TORCS 1.3.7 (SimGearboxUpdate) sets a driven wheel's inertia when the gear changes, to half
+    # the new gear's inertia x its overall ratio^2 + the wheel's (wheel + half the axle's) over
+    # the gear's efficiency, and keeps it through the shift while the clutch is open (neutral:
+    # the free wheel's). On a road without grip (no tyre torque) and the clutch open, a braked
+    # wheel then slows by dt x its brake torque / that inertia each sub-step, exactly.
+    car = ph.sedan()
+    w = ph.world_at(straight(friction=0.0), car, gear=2)
+    spin = 50.0
+    w.state[0, L.S_SPIN:L.S_SPIN + 4] = spin
+    w.state[0, L.S_SPINRAW:L.S_SPINRAW + 4] = spin
+    brake, dt = 0.1, 0.002
+    w.step(np.array([[0.0, 0.0, brake, target, 0.0]]), substeps=1)    # the change's sub-step
+    assert w.gear[0] == target
+    n = 20
+    w0 = w.wheel_spin[0].copy()
+    w.step(np.array([[0.0, 0.0, brake, target, 0.0]]), substeps=n)
+    if target != 0:
+        assert w.state[0, L.S_SHIFT] > 0.0                              # still shifting: clutch open
+    wheel_i = car.wheel_inertia + np.repeat(car.axle_inertia, 2) / 2.0
+    i_rear = wheel_i[2]
+    if target != 0:
+        ratio = car.overall_ratios[target]
+        i_rear = 0.5 * car.gear_inertias[target] * ratio * ratio + wheel_i[2] / car.gear_efficiencies[target]
+    p = brake * car.brake_max_pressure
+    t_front = car.brake_kb[0] * p * car.brake_front_share
+    t_rear = car.brake_kb[2] * p * (1.0 - car.brake_front_share)
+    dw = w0 - w.wheel_spin[0]
+    assert car.drive_type == "RWD"
+    np.testing.assert_allclose(dw[:2], n * dt * t_front / wheel_i[0], rtol=1e-9)
+    np.testing.assert_allclose(dw[2:], n * dt * t_rear / i_rear, rtol=1e-9)
+    if target != 0:                       # the free wheel's inertia (the rule before) is lighter
+        assert i_rear > 1.05 * wheel_i[2]
 
 
 def test_engaging_a_gear_from_rest_drops_the_engine_to_the_wheels_then_free_revs(straight, ph):
