@@ -325,7 +325,7 @@ def refresh(st, cp, pt, surf, tsc, count_laps):
     for i in range(st.shape[0]):
         yaw = _wrap(st[i, S_YAW])
         st[i, S_YAW] = yaw
-        sy, cy = el.sincos(yaw)
+        cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_VX] = st[i, S_VXG] * cy + st[i, S_VYG] * sy
         st[i, S_VY] = st[i, S_VYG] * cy - st[i, S_VXG] * sy
         _, _, p, q, n, ch, sh = track_update(st, i, cp, pt, surf, tsc, st[i, S_X], st[i, S_Y],
@@ -658,7 +658,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     pw2, pw3 = st[i, S_SPINRAW + 2], st[i, S_SPINRAW + 3]
     pt0, pt1, pt2, pt3 = st[i, S_FTRAW], st[i, S_FTRAW + 1], st[i, S_FTRAW + 2], st[i, S_FTRAW + 3]
     pn0, pn1, pn2, pn3 = st[i, S_FNRAW], st[i, S_FNRAW + 1], st[i, S_FNRAW + 2], st[i, S_FNRAW + 3]
-    sy, cy = el.sincos(yaw)
+    cy, sy = math.cos(yaw), math.sin(yaw)
     # cos, sin of yaw - track heading as the last `track_update` formed them (same piece, same
     # x, y: the same bits), then each sub-step's `track_update` returns the next
     _, _, ch, sh = _piece_local(pt, int(st[i, S_PIECE]), x, y)
@@ -677,12 +677,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
             d_done = d
-            s_d, c_d = el.sincos(abs(d))
-            t_d = s_d / c_d                                      # tan |d| (|d| < pi / 2)
-            outer = math.copysign(el.atan(wb * t_d / (wb + track_f * t_d)), d)
+            t_d = math.tan(abs(d))
+            outer = math.copysign(math.atan(wb * t_d / (wb + track_f * t_d)), d)
             d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
-            sd0, cd0 = el.sincos(d0 + toe0)                     # heading = steer + toe
-            sd1, cd1 = el.sincos(d1 + toe1)
+            cd0, sd0 = math.cos(d0 + toe0), math.sin(d0 + toe0)     # heading = steer + toe
+            cd1, sd1 = math.cos(d1 + toe1), math.sin(d1 + toe1)
             l_cd[0], l_sd[0], l_cd[1], l_sd[1] = cd0, sd0, cd1, sd1
 
         # --- gearbox (spec 4.3), in TORCS's order: a shift in progress runs its timer down and,
@@ -732,11 +731,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         vx2 = vx * vx
         down_f = down_r = wfx = wfz = wmy = 0.0
         pitch = st[i, S_PITCH]
-        s_p, c_p = el.sincos(pitch)        # aero and wheel loads
+        s_p, c_p = math.sin(pitch), math.cos(pitch)        # aero and wheel loads
         if vx > 0.0:
             hm = 1.5 * (st[i, S_RIDE] + st[i, S_RIDE + 1] + st[i, S_RIDE + 2] + st[i, S_RIDE + 3])
             hm = hm * hm
-            hm = 2.0 * el.exp(-3.0 * hm * hm)
+            hm = 2.0 * math.exp(-3.0 * hm * hm)
             # climb = atan2(vz, vx) + pitch, its cos and sin without atan2: (vx, vz) / |(vx, vz)|
             # rotated by the pitch (within a few ulp of the libm form, relative to vx^2); one
             # division for 1 / |v| and 1 / |(vx, vz)|
@@ -914,7 +913,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         x += vxg * dt
         y += vyg * dt
         yaw = _wrap_step(yaw + r * dt)
-        sy, cy = el.sincos(yaw)
+        cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_TIME] += dt
         cpsi, spsi, p_end, q_end, n_end, ch_end, sh_end = track_update(
             st, i, cp, pt, surf, tsc, x, y, cy, sy, True)

@@ -272,7 +272,7 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
     inv_dt = 1.0 / dt
-    sr = el.sincos(st[i, S_ROLLA])[0]
+    sr = math.sin(st[i, S_ROLLA])
     p, q, n = _cg_on_piece(st, i, pt, tsc)
     v0 = v1 = v2 = v3 = 0.0
     e0 = e1 = e2 = e3 = 0

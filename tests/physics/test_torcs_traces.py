@@ -104,14 +104,19 @@ def test_first_upshift_hunts_back_to_first_as_torcs_does(fidelity):
 
 def test_speed_z_is_the_bodys_vertical_velocity_as_in_torcs(fidelity):
     # TORCS's SCR speedZ is the body's vertical velocity (DynGC.vel.z); over e-track-4's first
-    # 60 s (hills, crests: TORCS's speedZ 2.4 km/h RMS) madsim's body vz reads it to 0.016 km/h
-    # RMS per message, the road gradient x the speed (speedZ before issue 12's shift round) to
-    # 0.075 km/h
+    # 60 s (hills, crests: TORCS's speedZ 2.4 km/h RMS) madsim's body vz reads it to 0.003 km/h
+    # RMS, both runs resampled every metre raced (as benchmarks/fidelity.py compares). Per
+    # message it is 0.017-0.042 km/h: the controller's gear changes move by a tick or two with
+    # the kernel's rounding (issue 13, session 10), and a car a few cm ahead on a crest reads
+    # another speedZ. The road gradient x the speed (speedZ before issue 12's shift round) was
+    # 0.075 km/h per message.
     run, _ = replay(fidelity, "e-track-4__car1-trb1__100", until_s=60.0)
-    t, m = run.torcs["speedZ"], run.madsim["speedZ"]
-    n = min(t.shape[0], m.shape[0])
-    assert np.sqrt(np.mean(t[:n] ** 2)) > 1.0                       # km/h: it does go up and down
-    assert np.sqrt(np.mean((m[:n] - t[:n]) ** 2)) < 0.04
+    t, m = run.torcs, run.madsim
+    assert np.sqrt(np.mean(t["speedZ"] ** 2)) > 1.0               # km/h: it does go up and down
+    grid = np.arange(0.0, min(t["distRaced"].max(), m["distRaced"].max()), 1.0)
+    assert grid.shape[0] > 1000
+    diff = fidelity._by_distance(m, "speedZ", grid) - fidelity._by_distance(t, "speedZ", grid)
+    assert np.sqrt(np.mean(diff ** 2)) < 0.01
 
 
 def test_car1_stock1_laps_forza_cleanly_like_torcs(fidelity):
