@@ -21,6 +21,11 @@ sincos (within 2 ulp of libm's): the five scenarios above, all on madsim's track
 bits; `rough_track` (g-track-1, road roughness under every wheel) was added, recorded from that
 kernel (main's a5a8956 gives another digest: rounding only).
 
+Then (issue 13, session 10) the sub-step with fewer divisions (the tyre's 1 / (dx dv) and
+1 / (s den), reciprocals of car constants in the car table, 1 / m once a sub-step): a change of
+rounding only, every scenario moved (benchmarks/RESULTS.md, "The car sub-step, cuts that move
+bits").
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
@@ -45,12 +50,12 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
-    "six_contact": "a904b92873cc1d6cd39492d11a94154c6ca5cb9f6dd7803724aec442f9e2d099",
-    "four_wd": "69964f4a92f29c72b23d71b548fe58e70abc58f0da318c1c893d7f9986d562ef",
-    "vec_traffic": "40a91837412a39f556e7f2cb32665ab6073819514d632488de3c2c6f9d799a83",
-    "env_ts": "b13fcde1451ecc7d0caaa42bd9843081caefef5397d761b933e71eb28cd02dbc",
-    "rough_track": "b8a4563ca3ad0bf151ed53fbdb847958ad78b3508aedb8e7fa2c1aecc04b0171",
+    "one_car": "8aae759758cea3750926529da1809c6d07fba4d3dbab26a98986dd69fb50a77e",
+    "six_contact": "7b1d75e8e398b21f129834e644b36628bec20b432780c1f6d88c4b143b074267",
+    "four_wd": "8c95b72e9447ed91336ee344234017a03c37c893bc84ef5d6a80506e0deac6b8",
+    "vec_traffic": "cac786ea50a9e5c9cfa15e079d591d0b64ea634f94749929ace1203aac039493",
+    "env_ts": "f9303213575500ea6efa65c656bab6a9b99bff79317a18769d924bf9c4d0c32d",
+    "rough_track": "d5df44619cca52977cef72175684f374618ecf38004507efe5ea0ae143a46a8a",
 }
 
 
