@@ -46,7 +46,8 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT, C_LOCK, C_MASS,
     C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
     C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
-    C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN,
+    C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN, C_BELL, C_IXX, C_IYY, C_RBELL, C_RIXX, C_RIYY, C_RTR2,
+    C_RWB2,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
     P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF,
@@ -108,40 +109,70 @@ def engine_torque(cp, curve_w, curve_t, i, we, throttle):
 
 
 @numba.njit(inline="always", **_JIT)
-def tyre_shape(s, b, c, e, skid):
-    """Magic-formula force factor F(s) of spec 4.9 for slip magnitude s >= 0 (the slip clamp at
-    1.5, the TORCS shape sin(C atan(B s (1-E) + E atan(B s))) times the skid term (1 + skid s)),
-    and its slope dF/ds (0 beyond the clamp). atan, sin and cos are `elementary`'s (within 2 ulp)
-    and there is no branch, so a loop over wheels runs in SIMD lanes."""
+def _wrap_step(a):
+    """`_wrap` (wrap_angle) of a yaw that moved by one sub-step from [-pi, pi): the same bits,
+    without its division and floor where a stayed inside (there (a + pi) / 2 pi is in [0, 1),
+    so wrap_angle returns a - 2 pi * 0 = a)."""
+    if -math.pi <= a < 3.14159265:
+        return a
+    return _wrap(a)
+
+
+@numba.njit(inline="always", **_JIT)
+def _shape_parts(s, b, c, e, skid):
+    """`tyre_shape` with its slope as a fraction: (F, num, den) with dF/ds = num / den, den >= 1,
+    so that a caller can fold the division into one it makes anyway (`_tyre`). The slope of
+    sin(C atan g), g = B s (1-E) + E atan(B s), is cos(C atan g) C g' / (1 + g^2) with
+    g' = B (1-E) + E B / (1 + u^2), u = B s: over the common denominator (1 + g^2)(1 + u^2)."""
     st = min(s, SLIP_MAX)
     u = b * st
     g = u * (1.0 - e) + e * el.atan(u)
     phi = c * el.atan(g)
     sh, ch = el.sincos(phi)
     grow = 1.0 + skid * st
-    dsh = ch * c / (1.0 + g * g) * (b * (1.0 - e) + e * b / (1.0 + u * u))
-    return sh * grow, (dsh * grow + sh * skid if s <= SLIP_MAX else 0.0)
+    u2 = 1.0 + u * u
+    den = (1.0 + g * g) * u2
+    num = ch * c * (b * (1.0 - e) * u2 + e * b) * grow + sh * skid * den
+    return sh * grow, (num if s <= SLIP_MAX else 0.0), den
+
+
+@numba.njit(inline="always", **_JIT)
+def tyre_shape(s, b, c, e, skid):
+    """Magic-formula force factor F(s) of spec 4.9 for slip magnitude s >= 0 (the slip clamp at
+    1.5, the TORCS shape sin(C atan(B s (1-E) + E atan(B s))) times the skid term (1 + skid s)),
+    and its slope dF/ds (0 beyond the clamp). atan, sin and cos are `elementary`'s (within 2 ulp)
+    and there is no branch, so a loop over wheels runs in SIMD lanes."""
+    f, num, den = _shape_parts(s, b, c, e, skid)
+    return f, num / den
 
 
 @numba.njit(inline="always", **_JIT)
 def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
     """Isotropic combined-slip tyre of one axle per unit of load scale K = Fz mu lf friction:
     (ft, fn, dft) = force along and across the wheel (wheel frame) and d(ft)/d(w R) >= 0 for
-    the implicit spin step. Selects, no branches (see `tyre_shape`)."""
+    the implicit spin step. Selects, no branches (see `tyre_shape`). Two vector divisions
+    besides the shape's two atan: 1 / (dx dv) gives both slip denominators' reciprocals and
+    1 / (s den) both 1 / s and the slope's 1 / den (a division costs ~8 times a product in
+    the lanes: benchmarks/RESULTS.md, "The car sub-step, cuts that move bits")."""
     vt = vwx * cd + vwy * sd
     vl = vwy * cd - vwx * sd
     dx = max(abs(vt), V_REG)
-    sx = (vt - spin_speed) / dx
-    sy = vl / max(math.sqrt(vwx * vwx + vwy * vwy), V_REG)
+    dv = max(math.sqrt(vwx * vwx + vwy * vwy), V_REG)
+    inv = 1.0 / (dx * dv)
+    inv_dx = dv * inv
+    sx = (vt - spin_speed) * inv_dx
+    sy = vl * (dx * inv)
     s = math.sqrt(sx * sx + sy * sy)
-    f, df = tyre_shape(s, b, c, e, skid)
+    f, num, den = _shape_parts(s, b, c, e, skid)
     slipping = s > 1e-6
     s1 = s if slipping else 1.0
-    fs = f / s1
-    cx, cy = sx / s1, sy / s1
+    inv_sd = 1.0 / (s1 * den)
+    inv_s = den * inv_sd
+    fs = f * inv_s
     if slipping:
-        return -fs * sx, -fs * sy, (max(df, 0.0) * cx * cx + fs * cy * cy) / dx
-    return 0.0, 0.0, b * c / dx
+        return -fs * sx, -fs * sy, ((max(num, 0.0) * (s1 * inv_sd) * sx * sx + fs * sy * sy)
+                                    * (inv_s * inv_s) * inv_dx)
+    return 0.0, 0.0, b * c * inv_dx
 
 
 @numba.njit(inline="always", **_JIT)
@@ -181,11 +212,11 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
-def rolling_drag(roll, v, r, m, izz, wb, dt):
+def rolling_drag(roll, v, r, m, izz_dt, wb, dt):
     """The rolling resistance's drag on the body. roll: the summed rolling resistance, N; v: the
-    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz: yaw inertia, kg m^2; wb: wheelbase, m;
-    dt: step, s. Returns (rv, rm): the force is -rv times the velocity (rv in N s/m), the yaw
-    moment -rm, N m (docs/physics.md, "Rolling resistance").
+    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz_dt: yaw inertia over the step,
+    kg m^2/s; wb: wheelbase, m; dt: step, s. Returns (rv, rm): the force is -rv times the
+    velocity (rv in N s/m), the yaw moment -rm, N m (docs/physics.md, "Rolling resistance").
     rv is roll / v unless rv dt / m > v, then v m / dt: TORCS 1.3.7's clamp as SimCarUpdate has
     it (read in Debian's simuv2.so), so a crawling car loses v^2 of its speed a step, not all of
     it. rm is roll wb / 2 against the yaw, at most what stops the yaw in one step (TORCS's own
@@ -193,9 +224,10 @@ def rolling_drag(roll, v, r, m, izz, wb, dt):
     rv = 0.0
     if v > 1e-5:
         rv = roll / v
-        if rv / m * dt > v:
-            rv = v * m / dt
-    rm = math.copysign(min(roll * wb * 0.5, abs(r) * izz / dt), r)
+        vm = v * m
+        if rv * dt > vm:                # rv dt / m > v, without dividing (m > 0)
+            rv = vm / dt
+    rm = math.copysign(min(roll * wb * 0.5, abs(r) * izz_dt), r)
     return rv, rm
 
 
@@ -524,12 +556,18 @@ def advance_parallel(st, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt
 
 
 @numba.njit(**_JIT, **NO_REFCOUNT)
-def car_trig(cp):
-    """cp's columns C_WGSIN, C_WGCOS (per wing) and C_TOESIN, C_TOECOS (per wheel) from the
-    angles C_WGANG and C_TOE (rad), rows of cars (N, N_CAR): `advance_car` reads them instead of
-    forming these constant sines and cosines at every call (4 libm sincos a call), with this
-    kernel's own math.sin / math.cos (the same bits; tests/physics/test_bit_identity.py)."""
+def car_derived(cp):
+    """cp's derived columns, rows of cars (N, N_CAR): C_WGSIN, C_WGCOS (per wing) and C_TOESIN,
+    C_TOECOS (per wheel) from the angles C_WGANG and C_TOE (rad), with this kernel's own
+    math.sin / math.cos (`advance_car` reads them instead of 4 libm sincos a call); the
+    reciprocals C_RBELL (per wheel), C_RIXX, C_RIYY, C_RWB2, C_RTR2 that the sub-step multiplies
+    by instead of dividing (`suspension.wheel_loads`, `body_vertical`)."""
     for i in range(cp.shape[0]):
+        for k in range(4):
+            cp[i, C_RBELL + k] = 1.0 / cp[i, C_BELL + k]
+        cp[i, C_RIXX], cp[i, C_RIYY] = 1.0 / cp[i, C_IXX], 1.0 / cp[i, C_IYY]
+        cp[i, C_RWB2] = 1.0 / ((cp[i, C_WX] + cp[i, C_WX + 1]) - (cp[i, C_WX + 2] + cp[i, C_WX + 3]))
+        cp[i, C_RTR2] = 1.0 / ((cp[i, C_WY + 1] + cp[i, C_WY + 3]) - (cp[i, C_WY] + cp[i, C_WY + 2]))
         for k in range(2):
             a = cp[i, C_WGANG + k]
             cp[i, C_WGSIN + k], cp[i, C_WGCOS + k] = math.sin(a), math.cos(a)
@@ -558,6 +596,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     # car constants
     a, b, wb, h = cp[i, C_A], cp[i, C_B], cp[i, C_L], cp[i, C_H]
     izz, mass_dry = cp[i, C_IZZ], cp[i, C_MASS]
+    inv_izz, izz_dt = 1.0 / izz, izz / dt
     lock, steer_rate, track_f = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, cp[i, C_TF]
     rad0, rad1, rad2, rad3 = cp[i, C_RAD], cp[i, C_RAD + 1], cp[i, C_RAD + 2], cp[i, C_RAD + 3]
     skid = cp[i, C_SKID]
@@ -580,7 +619,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     dragk = st[i, S_DRAGK]
     scx2 = cp[i, C_SCX2] * wear * dragk * dragk
     clift_f, clift_r = cp[i, C_CLIFT_F], cp[i, C_CLIFT_R]
-    sw0, cw0 = cp[i, C_WGSIN], cp[i, C_WGCOS]             # wings (spec 4.7), see `car_trig`
+    sw0, cw0 = cp[i, C_WGSIN], cp[i, C_WGCOS]             # wings (spec 4.7), see `car_derived`
     sw1, cw1 = cp[i, C_WGSIN + 1], cp[i, C_WGCOS + 1]
     kx0, kx1 = cp[i, C_WGKX] * wear, cp[i, C_WGKX + 1] * wear
     kz0, kz1 = cp[i, C_WGKZ], cp[i, C_WGKZ + 1]
@@ -598,9 +637,9 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     l_b, l_c, l_e = el.lanes4(), el.lanes4(), el.lanes4()
     l_ft, l_fn, l_dft = el.lanes4(), el.lanes4(), el.lanes4()
     l_fz, l_k, l_fric = el.lanes4(), el.lanes4(), el.lanes4()
-    l_mu, l_lf0, l_lfd, l_lfk, l_opl = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
+    l_mu, l_lf0, l_lfd, l_lfk = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
     for k in range(4):
-        l_mu[k], l_lfk[k], l_opl[k] = cp[i, C_KMU + k], cp[i, C_LFK + k], cp[i, C_OPLOAD + k]
+        l_mu[k], l_lfk[k] = cp[i, C_KMU + k], cp[i, C_LFK + k] / cp[i, C_OPLOAD + k]
         l_lf0[k], l_lfd[k] = cp[i, C_LFMIN + k], cp[i, C_LFMAX + k] - cp[i, C_LFMIN + k]
     l_b[0], l_b[1], l_b[2], l_b[3] = bf, bf, br, br
     l_c[0], l_c[1], l_c[2], l_c[3] = cf, cf, cr, cr
@@ -638,7 +677,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
             d_done = d
-            outer = math.copysign(math.atan(wb * math.tan(abs(d)) / (wb + track_f * math.tan(abs(d)))), d)
+            t_d = math.tan(abs(d))
+            outer = math.copysign(math.atan(wb * t_d / (wb + track_f * t_d)), d)
             d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
             cd0, sd0 = math.cos(d0 + toe0), math.sin(d0 + toe0)     # heading = steer + toe
             cd1, sd1 = math.cos(d1 + toe1), math.sin(d1 + toe1)
@@ -691,18 +731,21 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         vx2 = vx * vx
         down_f = down_r = wfx = wfz = wmy = 0.0
         pitch = st[i, S_PITCH]
-        s_p, c_p = math.sin(pitch), math.cos(pitch)        # one sincos: aero and wheel loads
+        s_p, c_p = math.sin(pitch), math.cos(pitch)        # aero and wheel loads
         if vx > 0.0:
             hm = 1.5 * (st[i, S_RIDE] + st[i, S_RIDE + 1] + st[i, S_RIDE + 2] + st[i, S_RIDE + 3])
             hm = hm * hm
             hm = 2.0 * math.exp(-3.0 * hm * hm)
-            body_down = vx2 * hm * vx / v                    # cos_a = max(0, vx/|v|)
+            # climb = atan2(vz, vx) + pitch, its cos and sin without atan2: (vx, vz) / |(vx, vz)|
+            # rotated by the pitch (within a few ulp of the libm form, relative to vx^2); one
+            # division for 1 / |v| and 1 / |(vx, vz)|
+            vz = st[i, S_VZ]
+            vxz = math.sqrt(vx2 + vz * vz)
+            inv_vv = 1.0 / (v * vxz)
+            body_down = vx2 * hm * vx * (vxz * inv_vv)       # cos_a = max(0, vx/|v|)
             down_f = clift_f * body_down
             down_r = clift_r * body_down
-            # climb = atan2(vz, vx) + pitch, its cos and sin without atan2: (vx, vz) / |(vx, vz)|
-            # rotated by the pitch (within a few ulp of the libm form, relative to vx^2)
-            vz = st[i, S_VZ]
-            vh = vx2 / math.sqrt(vx2 + vz * vz)
+            vh = vx2 * (v * inv_vv)
             c_cl, s_cl = (vx * c_p - vz * s_p) * vh, (vz * c_p + vx * s_p) * vh
             sa0 = sw0 * c_cl + cw0 * s_cl                    # sin(wing angle + climb) vx^2
             sa1 = sw1 * c_cl + cw1 * s_cl
@@ -734,7 +777,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         l_spin[0], l_spin[1], l_spin[2], l_spin[3] = w0 * rad0, w1 * rad1, w2 * rad2, w3 * rad3
         for k in range(n_lanes):
             fz = l_fz[k]
-            l_k[k] = fz * l_mu[k] * l_fric[k] * (l_lf0[k] + l_lfd[k] * el.exp(l_lfk[k] * fz / l_opl[k]))
+            l_k[k] = fz * l_mu[k] * l_fric[k] * (l_lf0[k] + l_lfd[k] * el.exp(l_lfk[k] * fz))
             l_ft[k], l_fn[k], l_dft[k] = _tyre(l_vx[k], l_vy[k], l_cd[k], l_sd[k], l_spin[k],
                                                l_b[k], l_c[k], l_e[k], skid)
         k0, k1, k2, k3 = l_k[0], l_k[1], l_k[2], l_k[3]
@@ -847,13 +890,14 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         mz = a * fy_f - b * fy_r - (fx0 * y0 + fx1 * y1 + fx2 * y2 + fx3 * y3)
 
         # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
-        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz, wb, dt)
-        vxg += ((fx * cy - fy * sy) - rv * vxg) / m * dt
-        vyg += ((fx * sy + fy * cy) - rv * vyg) / m * dt
-        r += (mz - rm) / izz * dt
+        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz_dt, wb, dt)
+        inv_m = 1.0 / m
+        vxg += ((fx * cy - fy * sy) - rv * vxg) * inv_m * dt
+        vyg += ((fx * sy + fy * cy) - rv * vyg) * inv_m * dt
+        r += (mz - rm) * inv_izz * dt
         r = min(max(r, -YAW_RATE_MAX), YAW_RATE_MAX)
-        ax_s = (fx_ng - rv * vx) / m
-        ay_s = (fy_ng - rv * vy) / m
+        ax_s = (fx_ng - rv * vx) * inv_m
+        ay_s = (fy_ng - rv * vy) * inv_m
         # heave, roll, pitch (TORCS's car.cpp moments): loads at the wheels, lateral forces
         # through the roll centres, longitudinal ones at the CG height + ride height, aero
         mx = (y0 * fb0 + y1 * fb1 + y2 * fb2 + y3 * fb3) + rc_f * fy_f + rc_r * fy_r
@@ -861,12 +905,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
               - (x0w * fb0 + x1w * fb1 + x2w * fb2 + x3w * fb3)
               - (fx0 * (h + st[i, S_RIDE]) + fx1 * (h + st[i, S_RIDE + 1])
                  + fx2 * (h + st[i, S_RIDE + 2]) + fx3 * (h + st[i, S_RIDE + 3])))
-        body_vertical(st, i, cp, m, fb0 + fb1 + fb2 + fb3 - down_f - down_r + wfz, mx, my, packed, dt)
+        body_vertical(st, i, cp, inv_m, fb0 + fb1 + fb2 + fb3 - down_f - down_r + wfz, mx, my, packed, dt)
         v2_max = max(v2_max, vxg * vxg + vyg * vyg)
         r_max = max(r_max, abs(r))
         x += vxg * dt
         y += vyg * dt
-        yaw = _wrap(yaw + r * dt)
+        yaw = _wrap_step(yaw + r * dt)
         cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_TIME] += dt
         cpsi, spsi, p_end, q_end, n_end, ch_end, sh_end = track_update(

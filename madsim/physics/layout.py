@@ -156,12 +156,19 @@ C_WGZ = C_WGX + 2         # wing z (the car file's), m
 C_IXX = C_WGZ + 2         # roll inertia (dry mass), kg m^2
 C_IYY = C_IXX + 1         # pitch inertia (dry mass), kg m^2
 # sines and cosines of constant angles, formed once here instead of in every `advance_car` call
-# (`kernel.car_trig`, called by `tables.car_table`: the kernel's own math.sin / math.cos)
+# (`kernel.car_derived`, called by `tables.car_table`: the kernel's own math.sin / math.cos)
 C_WGSIN = C_IYY + 1       # sin, cos of each wing angle (front, rear)
 C_WGCOS = C_WGSIN + 2
 C_TOESIN = C_WGCOS + 2    # sin, cos of each wheel's static toe (FR, FL, RR, RL)
 C_TOECOS = C_TOESIN + 4
-N_CAR = C_TOECOS + 4
+# reciprocals of constants the sub-step divides by (`kernel.car_derived`: one division each,
+# once, instead of one per sub-step)
+C_RBELL = C_TOECOS + 4    # 1 / bellcrank ratio, per wheel
+C_RIXX = C_RBELL + 4      # 1 / roll inertia, 1/(kg m^2)
+C_RIYY = C_RIXX + 1       # 1 / pitch inertia, 1/(kg m^2)
+C_RWB2 = C_RIYY + 1       # 1 / (front pair's x - rear pair's x), 1/m (`suspension.wheel_loads`)
+C_RTR2 = C_RWB2 + 1       # 1 / (left pair's y - right pair's y), 1/m
+N_CAR = C_RTR2 + 1
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,

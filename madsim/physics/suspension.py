@@ -13,8 +13,8 @@ import numba
 
 from madsim.physics import elementary as el
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
-    C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H, C_IXX, C_IYY,
-    C_PACK, C_RIDE0, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
+    C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H,
+    C_PACK, C_RBELL, C_RIDE0, C_RIXX, C_RIYY, C_RTR2, C_RWB2, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
     P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L, P_CURBK_R,
     P_CURV, P_INVLEN, P_LEN, P_S0, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_R, P_TB0,
     P_ZR0, P_ZR1,
@@ -41,7 +41,7 @@ def _damper(v, c1, c2, v1):
 
 
 @numba.njit(inline="always", **_JIT)
-def _wheel_travel(st, i, cp, k, ride, dt):
+def _wheel_travel(st, i, cp, k, ride, dt, inv_dt):
     """Wheel k's suspension travel for one sub-step (docs/physics.md, after TORCS 1.3.7's
     SimWheelUpdateRide and SimSuspCheckIn): the wheel moves by its relative velocity, stopped
     by the road (`ride`, m: body reference above the road under the wheel) and by the packers,
@@ -51,7 +51,7 @@ def _wheel_travel(st, i, cp, k, ride, dt):
     bell = cp[i, C_BELL + k]
     pack = cp[i, C_PACK + k]
     prex = st[i, S_SUSP + k]
-    x = prex / bell - st[i, S_WVZ + k] * dt
+    x = prex * cp[i, C_RBELL + k] - st[i, S_WVZ + k] * dt
     if ride < x:
         x = ride
         st[i, S_WVZ + k] = 0.0
@@ -67,7 +67,7 @@ def _wheel_travel(st, i, cp, k, ride, dt):
         x = cp[i, C_COURSE + k]
         state = 2
     st[i, S_SUSP + k] = x
-    return (prex - x) / dt, state
+    return (prex - x) * inv_dt, state
 
 
 @numba.njit(inline="always", **_JIT)
@@ -271,6 +271,7 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     ahead, rising to the left) from the road heights under the four wheels); a tyre's load is
     max(f, 0)."""
     zb = st[i, S_Z] - cp[i, C_H]
+    inv_dt = 1.0 / dt
     sr = math.sin(st[i, S_ROLLA])
     p, q, n = _cg_on_piece(st, i, pt, tsc)
     v0 = v1 = v2 = v3 = 0.0
@@ -297,7 +298,7 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
         road_lr += road if k % 2 == 1 else -road
         ride = zb - cp[i, C_WX + k] * sp + cp[i, C_WY + k] * sr - road
         st[i, S_RIDE + k] = ride
-        v, state = _wheel_travel(st, i, cp, k, ride, dt)
+        v, state = _wheel_travel(st, i, cp, k, ride, dt, inv_dt)
         if state == 1:
             mask |= 1 << k
         if k == 0:
@@ -312,23 +313,23 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     arb_f = cp[i, C_ARB] * (st[i, S_SUSP + 1] - st[i, S_SUSP])
     arb_r = cp[i, C_ARB + 1] * (st[i, S_SUSP + 3] - st[i, S_SUSP + 2])
     # the road's gradient in the body frame from the heights under the four wheels (TORCS's
-    # SimCarUpdateForces): (front pair - rear pair) / (2 wheelbase), (left - right) / (2 track)
-    wb2 = (cp[i, C_WX] + cp[i, C_WX + 1]) - (cp[i, C_WX + 2] + cp[i, C_WX + 3])
-    tr2 = (cp[i, C_WY + 1] + cp[i, C_WY + 3]) - (cp[i, C_WY] + cp[i, C_WY + 2])
+    # SimCarUpdateForces): (front pair - rear pair) / (2 wheelbase), (left - right) / (2 track),
+    # by the reciprocals of `kernel.car_derived`
     return (_wheel_force(st, i, cp, 0, v0, e0, arb_f, dt), _wheel_force(st, i, cp, 1, v1, e1, -arb_f, dt),
             _wheel_force(st, i, cp, 2, v2, e2, arb_r, dt), _wheel_force(st, i, cp, 3, v3, e3, -arb_r, dt),
-            mask, road_fr / wb2, road_lr / tr2)
+            mask, road_fr * cp[i, C_RWB2], road_lr * cp[i, C_RTR2])
 
 
 @numba.njit(inline="always", **_JIT)
-def body_vertical(st, i, cp, m, fz_sum, mx, my, mask, dt):
+def body_vertical(st, i, cp, inv_m, fz_sum, mx, my, mask, dt):
     """Heave, roll and pitch of car i by one sub-step (TORCS's semi-implicit Euler, roll and
     pitch limited to +-1.04 rad), then the packers' ground contact: each wheel on its packers
     lifts the body to them and halves its downward speed (docs/physics.md).
-    fz_sum: vertical force on the body without gravity, N; mx, my: roll and pitch moments, N m."""
-    vz = st[i, S_VZ] + (fz_sum / m - G) * dt
-    wr = st[i, S_ROLLR] + mx / cp[i, C_IXX] * dt
-    wp = st[i, S_PITCHR] + my / cp[i, C_IYY] * dt
+    inv_m: 1 / the car's mass, 1/kg; fz_sum: vertical force on the body without gravity, N;
+    mx, my: roll and pitch moments, N m."""
+    vz = st[i, S_VZ] + (fz_sum * inv_m - G) * dt
+    wr = st[i, S_ROLLR] + mx * cp[i, C_RIXX] * dt
+    wp = st[i, S_PITCHR] + my * cp[i, C_RIYY] * dt
     z = st[i, S_Z] + vz * dt
     roll = min(max(st[i, S_ROLLA] + wr * dt, -ANGLE_MAX), ANGLE_MAX)
     pitch = min(max(st[i, S_PITCH] + wp * dt, -ANGLE_MAX), ANGLE_MAX)

@@ -12,7 +12,7 @@ import numpy as np
 
 from madsim.cars.spec import CarSpec
 from madsim.physics import layout as L
-from madsim.physics.kernel import car_trig
+from madsim.physics.kernel import car_derived
 from madsim.tracks.build import COL, LEFT, STYLE_CURB
 from madsim.tracks.track import Track
 
@@ -34,7 +34,7 @@ def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.nd
         curve_t[i, :k] = car.engine_torques_nm
         curve_w[i, k:] = car.engine_speeds_rad_s[-1]
         curve_t[i, k:] = car.engine_torques_nm[-1]
-    car_trig(cp)
+    car_derived(cp)
     return cp, curve_w, curve_t
 
 

@@ -25,6 +25,11 @@ Then (issue 12, session 10) TORCS's shift inertia: a driven wheel keeps the enga
 inertia while the clutch is open (it took the free wheel's): six_contact, four_wd, vec_traffic
 and rough_track moved (they shift); one_car and env_ts (no shift) kept their bits.
 
+Then (issue 13, session 10) the sub-step with fewer divisions (the tyre's 1 / (dx dv) and
+1 / (s den), reciprocals of car constants in the car table, 1 / m once a sub-step): a change of
+rounding only, every scenario moved (benchmarks/RESULTS.md, "The car sub-step, cuts that move
+bits"). The digests below are of the two together (main after both merges).
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
@@ -49,12 +54,12 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "ec48fcf4249d7dd27ce2c49cadb04a42093df31ac2d74356307007c8922b5ff8",
-    "six_contact": "51300ff788e851765f3aa92f493a525bc3c7a502ab71eb7b41b79f745cf0b7d6",
-    "four_wd": "9b1c1cd06e81b5016bf9b9aff5f423c0e3dbf7307a924b7d793d199c198a075c",
-    "vec_traffic": "7b305ea0b81fffabc623aac067f1373819ef30a469efb127ce204daca7533234",
-    "env_ts": "b13fcde1451ecc7d0caaa42bd9843081caefef5397d761b933e71eb28cd02dbc",
-    "rough_track": "fea9f59d973ed0cf838595fe84f3a49b24a9f24e35d20bc6b890a4dd32bdd17f",
+    "one_car": "8aae759758cea3750926529da1809c6d07fba4d3dbab26a98986dd69fb50a77e",
+    "six_contact": "5ebee338cb695f8fd2ec6989b4469edd306e5acfca15c51d2e4269e90e4a5512",
+    "four_wd": "8663f09fc7aeb3541fa83058ef862ed2eff9208c14685c35a49bcc0321bbecc6",
+    "vec_traffic": "fdb701182f80e75dd3b1f688c154ca057c23abb1c71581dd13df8d36ea777984",
+    "env_ts": "f9303213575500ea6efa65c656bab6a9b99bff79317a18769d924bf9c4d0c32d",
+    "rough_track": "5b989b31254616763bf63165c0ea42af343e8eb031da041c2b0f96001bf8829a",
 }
 
 

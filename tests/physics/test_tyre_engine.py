@@ -54,6 +54,50 @@ def test_tyre_slope_is_the_derivative_of_the_shape():
             assert kernel.tyre_shape(s, b, c, e, skid)[1] == pytest.approx(numeric, rel=1e-5, abs=1e-7)
 
 
+def test_tyre_forces_equal_the_plain_quotients_within_rounding():
+    # `_tyre` folds its divisions (1 / (dx dv), 1 / (s den)): the same forces and slope as the
+    # quotients written out, within a few ulp, over slips from rest to sliding and every sign
+    b, c, e = SHAPES["car1-trb1"][0]
+    skid = 0.3
+    cd, sd = math.cos(0.05), math.sin(0.05)
+    checked = 0
+    for vwx in (-12.0, -0.5, 0.0, 0.7, 3.0, 25.0):
+        for vwy in (-4.0, -0.01, 0.0, 0.3, 6.0):
+            for spin in (-5.0, 0.0, 2.9, 24.0, 40.0):
+                got = kernel._tyre(vwx, vwy, cd, sd, spin, b, c, e, skid)
+                vt, vl = vwx * cd + vwy * sd, vwy * cd - vwx * sd
+                dx = max(abs(vt), kernel.V_REG)
+                sx = (vt - spin) / dx
+                sy = vl / max(math.hypot(vwx, vwy), kernel.V_REG)
+                s = math.hypot(sx, sy)
+                f, df = kernel.tyre_shape(s, b, c, e, skid)
+                if s > 1e-6:
+                    want = (-f * sx / s, -f * sy / s,
+                            (max(df, 0.0) * (sx / s) ** 2 + f / s * (sy / s) ** 2) / dx)
+                    checked += 1
+                else:
+                    want = (0.0, 0.0, b * c / dx)
+                assert got == pytest.approx(want, rel=1e-13, abs=1e-15)
+    assert checked > 100
+
+
+def test_car_table_holds_the_reciprocals_the_sub_step_multiplies_by():
+    # `kernel.car_derived`: 1 / bellcrank per wheel, 1 / roll and pitch inertia, and the road
+    # gradient's 1 / (front pair x - rear pair x) = 1 / (2 wheelbase), 1 / (2 track)
+    from madsim.physics import layout as L
+
+    cars = [load_car("madsim-sedan"), load_car("madsim-buggy")]
+    cp, _, _ = car_table(cars, ["semi-pro", "pro"])
+    for i, car in enumerate(cars):
+        for k in range(4):
+            assert cp[i, L.C_RBELL + k] == 1.0 / cp[i, L.C_BELL + k]
+        assert (cp[i, L.C_RIXX], cp[i, L.C_RIYY]) == (1.0 / car.ixx, 1.0 / car.iyy)
+        assert cp[i, L.C_RWB2] == pytest.approx(0.5 / car.wheelbase, rel=1e-12)
+        wy = cp[i, L.C_WY:L.C_WY + 4]
+        assert cp[i, L.C_RTR2] == pytest.approx(1.0 / ((wy[1] - wy[0]) + (wy[3] - wy[2])), rel=1e-12)
+        assert 0.1 < cp[i, L.C_RTR2] < 0.5                     # 2 x a 1-5 m track
+
+
 @pytest.mark.parametrize("name", ["madsim-sedan", "madsim-gt", "madsim-buggy"])
 def test_engine_torque_map(name):
     car = load_car(name)
