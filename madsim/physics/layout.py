@@ -161,7 +161,8 @@ C_WGSIN = C_IYY + 1       # sin, cos of each wing angle (front, rear)
 C_WGCOS = C_WGSIN + 2
 C_TOESIN = C_WGCOS + 2    # sin, cos of each wheel's static toe (FR, FL, RR, RL)
 C_TOECOS = C_TOESIN + 4
-N_CAR = C_TOECOS + 4
+C_DMGK = C_TOECOS + 4      # damage factor of the driver's skill (spec 4.12; 0: damage off)
+N_CAR = C_DMGK + 1
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,
