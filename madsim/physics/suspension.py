@@ -383,11 +383,16 @@ def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
         pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
         nk = n + xk * spsi + yk * cpsi
         # the road's normal: the piece's chord along the track at the wheel's offset (per metre
-        # of that offset's own length on a curve), its cross slope (banking) across
+        # of that offset's own length on a curve), its cross slope (banking) across, a curb's
+        # rise on a curb
         curv = pt[pk, P_CURV]
         span = pt[pk, P_LEN] * max(1.0 - curv * nk, 0.1)
         g_along = (_road_z_at(pt, tsc, pk, pt[pk, P_LEN], nk) - _road_z_at(pt, tsc, pk, 0.0, nk)) / span
         g_across = (_road_z_at(pt, tsc, pk, qk, half) - _road_z_at(pt, tsc, pk, qk, -half)) / (2.0 * half)
+        if 0.0 < nk - half <= pt[pk, P_BW_L]:          # a curb border rises outwards (`relief`)
+            g_across += pt[pk, P_CURBK_L]
+        elif 0.0 < -nk - half <= pt[pk, P_BW_R]:
+            g_across -= pt[pk, P_CURBK_R]
         inv = 1.0 / math.sqrt(1.0 + g_along * g_along + g_across * g_across)
         heading = pt[pk, P_A0] + qk * curv
         ch, sh = math.cos(heading), math.sin(heading)
