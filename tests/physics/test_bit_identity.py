@@ -25,6 +25,10 @@ Then (issue 12, session 10) TORCS's shift inertia: a driven wheel keeps the enga
 inertia while the clutch is open (it took the free wheel's): six_contact, four_wd, vec_traffic
 and rough_track moved (they shift); one_car and env_ts (no shift) kept their bits.
 
+Then (issue 12, session 10) bottoming, TORCS's SimCarCollideZ (`suspension.ground_contact`): no
+scenario's wheel reaches its packers, all six kept their bits (tests/physics/test_bottoming.py
+and the dirt-2 trace test cover the rule).
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
