@@ -50,15 +50,14 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_RWB2,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
-    P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF,
-    P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R,
+    P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SURF, P_TB0,
     P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
     S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_RIDE,
     S_ROADZ, S_ROLL, S_PITCH, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG,
     S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
-from madsim.physics.suspension import G, body_vertical, on_piece, relief, wheel_loads
+from madsim.physics.suspension import G, body_vertical, ground_contact, relief, surface_index, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -175,38 +174,13 @@ def _tyre(vwx, vwy, cd, sd, spin_speed, b, c, e, skid):
     return 0.0, 0.0, b * c * inv_dx
 
 
-@numba.njit(inline="always", **_JIT)
-def _surface(pt, p, q, nw, half):
-    """Material index under a point at distance q (m, may run one piece over) and offset nw."""
-    p, q = on_piece(pt, p, q)
-    over_r = -nw - half
-    over_l = nw - half
-    if over_r > 0.0:
-        bw = pt[p, P_BW_R]
-        if over_r <= bw:
-            return int(pt[p, P_BSURF_R])
-        u = min(max(q / pt[p, P_LEN], 0.0), 1.0)
-        if over_r <= bw + pt[p, P_SW0_R] + u * (pt[p, P_SW1_R] - pt[p, P_SW0_R]):
-            return int(pt[p, P_SSURF_R])
-        return int(pt[p, P_WSURF_R])
-    if over_l > 0.0:
-        bw = pt[p, P_BW_L]
-        if over_l <= bw:
-            return int(pt[p, P_BSURF_L])
-        u = min(max(q / pt[p, P_LEN], 0.0), 1.0)
-        if over_l <= bw + pt[p, P_SW0_L] + u * (pt[p, P_SW1_L] - pt[p, P_SW0_L]):
-            return int(pt[p, P_SSURF_L])
-        return int(pt[p, P_WSURF_L])
-    return int(pt[p, P_SURF])
-
-
 @numba.njit(**_JIT)
 def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
     """Friction and rolling resistance under each wheel of car i (CG at q, n on piece p)."""
     for k in range(4):
         xw = cp[i, C_A] if k < 2 else -cp[i, C_B]
         yw = cp[i, C_WY + k]
-        j = _surface(pt, p, q + xw * cpsi - yw * spsi, n + xw * spsi + yw * cpsi, half)
+        j = surface_index(pt, p, q + xw * cpsi - yw * spsi, n + xw * spsi + yw * cpsi, half)
         st[i, S_FRIC + k] = surf[j, 0]
         st[i, S_ROLL + k] = surf[j, 1]
 
@@ -905,7 +879,9 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
               - (x0w * fb0 + x1w * fb1 + x2w * fb2 + x3w * fb3)
               - (fx0 * (h + st[i, S_RIDE]) + fx1 * (h + st[i, S_RIDE + 1])
                  + fx2 * (h + st[i, S_RIDE + 2]) + fx3 * (h + st[i, S_RIDE + 3])))
-        body_vertical(st, i, cp, inv_m, fb0 + fb1 + fb2 + fb3 - down_f - down_r + wfz, mx, my, packed, dt)
+        body_vertical(st, i, cp, inv_m, fb0 + fb1 + fb2 + fb3 - down_f - down_r + wfz, mx, my, dt)
+        if packed:      # a wheel on its packers: bottoming (TORCS's SimCarCollideZ)
+            vxg, vyg = ground_contact(st, i, cp, pt, surf, tsc, packed, vxg, vyg, cpsi, spsi)
         v2_max = max(v2_max, vxg * vxg + vyg * vyg)
         r_max = max(r_max, abs(r))
         x += vxg * dt

@@ -13,20 +13,22 @@ import numba
 
 from madsim.physics import elementary as el
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
-    C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DREB1, C_DREB2, C_H,
-    C_PACK, C_RBELL, C_RIDE0, C_RIXX, C_RIYY, C_RTR2, C_RWB2, C_SPRING, C_VBUMP, C_VREB, C_W0, C_WMASS, C_WX, C_WY,
-    P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L, P_CURBK_R,
-    P_CURV, P_INVLEN, P_LEN, P_S0, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R, P_SW1_R, P_TB0,
-    P_ZR0, P_ZR1,
-    S_FZ, S_GX, S_GY, S_N, S_PIECE, S_PITCH, S_PITCHR, S_RIDE, S_ROLLA, S_ROLLR, S_S, S_SUSP,
+    C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DMGK, C_DREB1, C_DREB2, C_H,
+    C_PACK, C_RBELL, C_RIDE0, C_RIXX, C_RIYY, C_RTR2, C_RWB2, C_SPRING, C_VBUMP, C_VREB, C_W0,
+    C_WMASS, C_WX, C_WY,
+    P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L,
+    P_CURBK_R, P_CURV, P_INVLEN, P_LEN, P_S0, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R,
+    P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_ZR0, P_ZR1,
+    S_DAMAGE, S_FZ, S_GX, S_GY, S_N, S_PIECE, S_PITCH, S_PITCHR, S_RIDE, S_ROLLA, S_ROLLR, S_S,
+    S_SUSP,
     S_THEAD, S_VXG, S_VYG, S_VZ, S_WVZ, S_YAW, S_Z, T_LENGTH, T_TANGENT_L, T_TANGENT_R, T_WIDTH,
 )
 
 G = 9.80665          # m/s^2, as TORCS
 ANGLE_MAX = 1.04     # rad, TORCS's limit of roll and pitch
-GROUND_REBOUND = 0.5
-"""Share of the body's downward speed removed per wheel on its packers (TORCS: the road
-surface's rebound, 0.5 for the roads; the surface table does not carry it, docs/physics.md)."""
+SURF_REBOUND, SURF_DAMMAGE = 4, 5
+"""Columns of the surface table (`tables.piece_table`) read by `ground_contact`: the surface's
+`rebound` and `dammage`."""
 
 _JIT = {"cache": True, "error_model": "numpy"}
 
@@ -321,26 +323,92 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
 
 
 @numba.njit(inline="always", **_JIT)
-def body_vertical(st, i, cp, inv_m, fz_sum, mx, my, mask, dt):
+def body_vertical(st, i, cp, inv_m, fz_sum, mx, my, dt):
     """Heave, roll and pitch of car i by one sub-step (TORCS's semi-implicit Euler, roll and
-    pitch limited to +-1.04 rad), then the packers' ground contact: each wheel on its packers
-    lifts the body to them and halves its downward speed (docs/physics.md).
+    pitch limited to +-1.04 rad); the packers' ground contact follows (`ground_contact`).
     inv_m: 1 / the car's mass, 1/kg; fz_sum: vertical force on the body without gravity, N;
     mx, my: roll and pitch moments, N m."""
     vz = st[i, S_VZ] + (fz_sum * inv_m - G) * dt
     wr = st[i, S_ROLLR] + mx * cp[i, C_RIXX] * dt
     wp = st[i, S_PITCHR] + my * cp[i, C_RIYY] * dt
-    z = st[i, S_Z] + vz * dt
-    roll = min(max(st[i, S_ROLLA] + wr * dt, -ANGLE_MAX), ANGLE_MAX)
-    pitch = min(max(st[i, S_PITCH] + wp * dt, -ANGLE_MAX), ANGLE_MAX)
-    if mask:
-        for k in range(4):
-            if mask & (1 << k):
-                z += cp[i, C_PACK + k] - st[i, S_RIDE + k]
-                if vz < 0.0:
-                    vz -= GROUND_REBOUND * vz
     st[i, S_VZ], st[i, S_ROLLR], st[i, S_PITCHR] = vz, wr, wp
-    st[i, S_Z], st[i, S_ROLLA], st[i, S_PITCH] = z, roll, pitch
+    st[i, S_Z] = st[i, S_Z] + vz * dt
+    st[i, S_ROLLA] = min(max(st[i, S_ROLLA] + wr * dt, -ANGLE_MAX), ANGLE_MAX)
+    st[i, S_PITCH] = min(max(st[i, S_PITCH] + wp * dt, -ANGLE_MAX), ANGLE_MAX)
+
+
+@numba.njit(inline="always", **_JIT)
+def surface_index(pt, p, q, nw, half):
+    """Material index (row of the surface table) under a point at distance q (m, may run one
+    piece over) along piece p and offset nw (m, + left); half: half the road's width, m."""
+    p, q = on_piece(pt, p, q)
+    over_r = -nw - half
+    over_l = nw - half
+    if over_r > 0.0:
+        bw = pt[p, P_BW_R]
+        if over_r <= bw:
+            return int(pt[p, P_BSURF_R])
+        u = min(max(q / pt[p, P_LEN], 0.0), 1.0)
+        if over_r <= bw + pt[p, P_SW0_R] + u * (pt[p, P_SW1_R] - pt[p, P_SW0_R]):
+            return int(pt[p, P_SSURF_R])
+        return int(pt[p, P_WSURF_R])
+    if over_l > 0.0:
+        bw = pt[p, P_BW_L]
+        if over_l <= bw:
+            return int(pt[p, P_BSURF_L])
+        u = min(max(q / pt[p, P_LEN], 0.0), 1.0)
+        if over_l <= bw + pt[p, P_SW0_L] + u * (pt[p, P_SW1_L] - pt[p, P_SW0_L]):
+            return int(pt[p, P_SSURF_L])
+        return int(pt[p, P_WSURF_L])
+    return int(pt[p, P_SURF])
+
+
+@numba.njit(**_JIT)
+def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
+    """The packers' ground contact of car i (TORCS 1.3.7's SimCarCollideZ, docs/physics.md,
+    "Bottoming"), wheel by wheel in wheel order for each wheel k on its packers (bit k of
+    `mask`, from `wheel_loads`): the body rises to the packers (`z += packers - ride`); with n
+    the road's unit normal under the wheel (the piece's slope along the track, its banking
+    across) and e, d the wheel's surface's `rebound` and `dammage`, the body's velocity
+    (vxg, vyg, vz; m/s) into the road `u = (v . n) e`, when negative, is taken off (`v -= u n`)
+    and the car takes `int(d |u| x skill damage factor)` damage points. Not inlined: it runs
+    only while a wheel is on its packers. (cpsi, spsi): cos, sin of yaw - track heading as
+    `wheel_loads` had them. Returns the new (vxg, vyg), m/s; updates z, vz and the damage."""
+    p, q, n = _cg_on_piece(st, i, pt, tsc)
+    half = 0.5 * tsc[T_WIDTH]
+    z, vz = st[i, S_Z], st[i, S_VZ]
+    for k in range(4):
+        if not mask & (1 << k):
+            continue
+        z += cp[i, C_PACK + k] - st[i, S_RIDE + k]
+        xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+        pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
+        nk = n + xk * spsi + yk * cpsi
+        # the road's normal: the piece's chord along the track at the wheel's offset (per metre
+        # of that offset's own length on a curve), its cross slope (banking) across, a curb's
+        # rise on a curb
+        curv = pt[pk, P_CURV]
+        span = pt[pk, P_LEN] * max(1.0 - curv * nk, 0.1)
+        g_along = (_road_z_at(pt, tsc, pk, pt[pk, P_LEN], nk) - _road_z_at(pt, tsc, pk, 0.0, nk)) / span
+        g_across = (_road_z_at(pt, tsc, pk, qk, half) - _road_z_at(pt, tsc, pk, qk, -half)) / (2.0 * half)
+        if 0.0 < nk - half <= pt[pk, P_BW_L]:          # a curb border rises outwards (`relief`)
+            g_across += pt[pk, P_CURBK_L]
+        elif 0.0 < -nk - half <= pt[pk, P_BW_R]:
+            g_across -= pt[pk, P_CURBK_R]
+        inv = 1.0 / math.sqrt(1.0 + g_along * g_along + g_across * g_across)
+        heading = pt[pk, P_A0] + qk * curv
+        ch, sh = math.cos(heading), math.sin(heading)
+        nx = -(g_along * ch - g_across * sh) * inv          # global x, y, z of the unit normal
+        ny = -(g_along * sh + g_across * ch) * inv
+        j = surface_index(pt, pk, qk, nk, half)
+        u = (vxg * nx + vyg * ny + vz * inv) * surf[j, SURF_REBOUND]
+        if u < 0.0:
+            vxg -= nx * u
+            vyg -= ny * u
+            vz -= inv * u
+            st[i, S_DAMAGE] += math.floor(surf[j, SURF_DAMMAGE] * -u * cp[i, C_DMGK])
+    st[i, S_Z], st[i, S_VZ] = z, vz
+    return vxg, vyg
 
 
 @numba.njit(**_JIT)

@@ -18,10 +18,15 @@ from madsim.tracks.track import Track
 
 SKID = {"rookie": 0.40, "amateur": 0.35, "semi-pro": 0.30, "pro": 0.0}
 """Skid term of the tyre formula per TORCS driver skill level (spec 4.9)."""
+DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
+"""TORCS's damage factor per skill level (spec 4.12; simuv2's simDammageFactor): the contact
+solver's and the bottoming's (`suspension.ground_contact`)."""
 
 
-def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(cp (N, N_CAR), curve_w (N, M), curve_t (N, M)): per-car constants and torque curves."""
+def car_table(cars: list[CarSpec], skills: list[str],
+              damage: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cp (N, N_CAR), curve_w (N, M), curve_t (N, M)): per-car constants and torque curves.
+    damage: False sets every car's damage factor (C_DMGK) to 0 (no bottoming damage)."""
     n = len(cars)
     m = max(len(c.engine_speeds_rad_s) for c in cars)
     cp = np.zeros((n, L.N_CAR))
@@ -29,6 +34,7 @@ def car_table(cars: list[CarSpec], skills: list[str]) -> tuple[np.ndarray, np.nd
     curve_t = np.zeros((n, m))
     for i, (car, skill) in enumerate(zip(cars, skills)):
         cp[i] = _car_row(car, SKID[skill])
+        cp[i, L.C_DMGK] = DAMAGE_SKILL[skill] if damage else 0.0
         k = len(car.engine_speeds_rad_s)
         curve_w[i, :k] = car.engine_speeds_rad_s
         curve_t[i, :k] = car.engine_torques_nm
@@ -134,9 +140,10 @@ def _car_row(c: CarSpec, skid: float) -> np.ndarray:
 
 
 def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(pt (P, N_PIECE), surf (S, 4), tsc (4,)) for the kernels. surf's columns: friction, rolling
+    """(pt (P, N_PIECE), surf (S, 6), tsc (4,)) for the kernels. surf's columns: friction, rolling
     resistance, roughness amplitude (m: half the file's roughness, as TORCS) and wave number
-    (rad/m: 2 pi / roughness wavelength), see `suspension.relief`."""
+    (rad/m: 2 pi / roughness wavelength), see `suspension.relief`; rebound and dammage (the
+    packers' ground contact, `suspension.ground_contact`)."""
     p = track.pieces
     w = track.width
     npc = p.shape[0]
@@ -171,8 +178,8 @@ def piece_table(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         pt[:, rise] = np.where((pt[:, curb] > 0.0) & (bw > 0.0), np.arctan2(p[:, COL[f"border_h_{sfx}"]], bw), 0.0)
     road = pt[:, L.P_SURF]
     pt[:, L.P_SAMESURF] = (road == np.roll(road, 1)) & (road == np.roll(road, -1))
-    surf = np.array([[sf.friction, sf.rolling_resistance, sf.roughness, 2.0 * np.pi / sf.roughness_wavelength]
-                     for sf in track.surfaces], dtype=np.float64)
+    surf = np.array([[sf.friction, sf.rolling_resistance, sf.roughness, 2.0 * np.pi / sf.roughness_wavelength,
+                      sf.rebound, sf.dammage] for sf in track.surfaces], dtype=np.float64)
     tsc = np.array([track.length, w, float(track.side_bank_tangent[0]), float(track.side_bank_tangent[1])])
     return np.ascontiguousarray(pt), surf, tsc
 

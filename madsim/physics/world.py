@@ -18,7 +18,7 @@ from madsim.cars.spec import CarSpec
 from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
 from madsim.physics import kernel, suspension, world_tick
 from madsim.physics import layout as L
-from madsim.physics.tables import QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
+from madsim.physics.tables import DAMAGE_SKILL, QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
 
 DT = SUBSTEP_S
@@ -28,8 +28,6 @@ SUBSTEPS = SUBSTEPS_PER_TICK
 TICK = TICK_S
 
 NAN_POLICIES = ("raise", "zero")
-DAMAGE_SKILL = {"rookie": 0.0, "amateur": 0.5, "semi-pro": 0.8, "pro": 1.0}
-"""TORCS's damage factor per skill level (spec 4.12), handed to the contact solver."""
 
 
 def contact_available() -> bool:
@@ -82,7 +80,7 @@ class World:
         self.nan_policy = nan_policy
         n = len(cars)
         self.n_cars = n
-        self._cp, self._curve_w, self._curve_t = car_table(self.cars, skills)
+        self._cp, self._curve_w, self._curve_t = car_table(self.cars, skills, self.damage_on)
         self._pt, self._surf, self._tsc = piece_table(track)
         self._top_gear = self._cp[:, L.C_TOP].astype(np.int64)
         # cars are independent inside a call, so threads give bit-identical results

@@ -210,7 +210,7 @@ class WorldBatch:
             return kind
         world = World(track, cars, np.random.default_rng(0), fuel=self.fuel, damage=self.damage,
                       contact=False)
-        cp, curve_w, curve_t = car_table(world.cars, list(world.skills))
+        cp, curve_w, curve_t = car_table(world.cars, list(world.skills), self.damage)
         kind = _Kind(world, self._track_of(track), cp, curve_w, curve_t)
         if self.contact:
             solver = self._new_solver(kind)

@@ -30,6 +30,10 @@ Then (issue 13, session 10) the sub-step with fewer divisions (the tyre's 1 / (d
 rounding only, every scenario moved (benchmarks/RESULTS.md, "The car sub-step, cuts that move
 bits"). The digests below are of the two together (main after both merges).
 
+Then (issue 12, session 10) bottoming, TORCS's SimCarCollideZ (`suspension.ground_contact`): no
+scenario's wheel reaches its packers, all six kept their bits (tests/physics/test_bottoming.py
+and the dirt-2 trace test cover the rule).
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python

@@ -53,7 +53,7 @@ def _track(tmp_path, segs, left_style="plan", rough_road=0.01, right_style="plan
 
 def test_height_on_the_road_its_borders_and_sides(tmp_path):
     pt, surf, tsc = _track(tmp_path, [segment("s", "str", lg=200.0)])
-    assert surf.shape[1] == 4
+    assert surf.shape[1] == 6      # friction, rolling, roughness a, k; rebound, dammage (bottoming)
     k = lambda wl: 2.0 * math.pi / wl  # noqa: E731
     for q, n in ((3.3, 0.3), (17.05, 4.1), (41.3, -5.9)):            # on the road: t = n + W / 2
         want = 0.005 * math.sin(k(0.8) * (n + W / 2)) * math.sin(k(0.8) * q)
