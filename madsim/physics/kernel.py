@@ -76,6 +76,9 @@ NO_REFCOUNT = {"_nrt": False}
 are kept. numba keeps them with atomic increments and decrements at every array alias, call
 and inlined body; in the sub-step loop they cost ~20 % of `advance_car` (perf: `lock inc` in
 NRT_incref / NRT_decref). Arrays passed in stay owned by the caller; the floats are unchanged."""
+COUNT_LAPS = np.bool_(True)
+"""`track_update`'s count_laps from `advance_car`: a typed bool, not the literal True, so that
+`track_update` compiles one signature for both of its callers."""
 
 
 @numba.njit(inline="always", **_JIT)
@@ -205,7 +208,7 @@ def rolling_drag(roll, v, r, m, izz_dt, wb, dt):
     return rv, rm
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT, _nrt=False)
 def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     """Locate car i at (x, y) with heading (cy, sy) = (cos, sin) yaw, walking from its stored
     piece, and store what a sub-step reads: s, n, piece, the surface under each wheel and (if
@@ -262,7 +265,7 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     return cpsi, spsi, p, q, n, ch, sh
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT, _nrt=False)
 def track_observed(st, i, pt, surf, tsc, p, q, n, ch, sh):
     """Store what of car i's track position only observers read (the sensors, `settle`, race
     positions), from the last `track_update`'s walk (p, q, n, ch, sh): the track heading, the
@@ -560,7 +563,13 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     call): callers pass the tick's own copy. One call of n sub-steps is bit-identical to n calls
     of one on the same controls (nothing is evaluated once per call that a sub-step changes). Returns
     (largest squared speed, m^2/s^2; largest |yaw rate|, rad/s) at the start and the sub-steps'
-    ends: bounds of how far the car went (contact whole ticks check them with its end pose)."""
+    ends: bounds of how far the car went (contact whole ticks check them with its end pose).
+    `wheel_loads`, `body_vertical`, `track_update` and `track_observed` are compiled on their
+    own and called, not inlined into this body at numba's IR level: numba's passes grow faster
+    than linearly with a function's size, and inlined they made this kernel's first compile
+    2.2x longer (55.6 s against 25.6 s of CPU on the 2-core AMD EPYC) for no speed measurable in
+    `bench_substep`. The small helpers on the sub-step's chain (`_axle_spin`, the tyre's) stay
+    inlined: called, `_axle_spin` cost ~5 %."""
     steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
     accel = min(max(controls[i, U_ACCEL], 0.0), 1.0)
     brake = min(max(controls[i, U_BRAKE], 0.0), 1.0)
@@ -890,7 +899,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         cy, sy = math.cos(yaw), math.sin(yaw)
         st[i, S_TIME] += dt
         cpsi, spsi, p_end, q_end, n_end, ch_end, sh_end = track_update(
-            st, i, cp, pt, surf, tsc, x, y, cy, sy, True)
+            st, i, cp, pt, surf, tsc, x, y, cy, sy, COUNT_LAPS)
 
     if nsub > 0:
         track_observed(st, i, pt, surf, tsc, p_end, q_end, n_end, ch_end, sh_end)

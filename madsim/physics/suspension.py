@@ -262,7 +262,7 @@ def _wheel_road_terms(cp, pt, surf, tsc, i, k, p, q, n, cpsi, spsi):
     return _road_z_at(pt, tsc, pk, qk, nk), base, a, kt, kl, curb, d, bw
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT, _nrt=False)
 def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
     """Vertical wheel forces of car i on the body (N, wheel order), from its suspensions and
     anti-roll bars at the body's present heave, roll and pitch over the road with its curbs and
@@ -322,7 +322,7 @@ def wheel_loads(st, i, cp, pt, surf, tsc, sp, cpsi, spsi, dt):
             mask, road_fr * cp[i, C_RWB2], road_lr * cp[i, C_RTR2])
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT, _nrt=False)
 def body_vertical(st, i, cp, inv_m, fz_sum, mx, my, dt):
     """Heave, roll and pitch of car i by one sub-step (TORCS's semi-implicit Euler, roll and
     pitch limited to +-1.04 rad); the packers' ground contact follows (`ground_contact`).
