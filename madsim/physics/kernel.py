@@ -190,22 +190,26 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
-def rolling_drag(roll, v, r, m, izz_dt, wb, dt):
+def rolling_drag(roll, v, r, m, izz, wb, dt):
     """The rolling resistance's drag on the body. roll: the summed rolling resistance, N; v: the
-    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz_dt: yaw inertia over the step,
-    kg m^2/s; wb: wheelbase, m; dt: step, s. Returns (rv, rm): the force is -rv times the
+    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz: yaw inertia, kg m^2; wb: wheelbase,
+    m; dt: step, s. Returns (rv, rm): the force is -rv times the
     velocity (rv in N s/m), the yaw moment -rm, N m (docs/physics.md, "Rolling resistance").
     rv is roll / v unless rv dt / m > v, then v m / dt: TORCS 1.3.7's clamp as SimCarUpdate has
     it (read in Debian's simuv2.so), so a crawling car loses v^2 of its speed a step, not all of
-    it. rm is roll wb / 2 against the yaw, at most what stops the yaw in one step (TORCS's own
-    clamp is r izz, without the step time: not taken, see the docs)."""
+    it. rm is roll wb / 2 against the yaw unless that moment over izz exceeds |r| (rad/s^2
+    against rad/s, as TORCS compares them), then r izz: TORCS 1.3.7's clamp (SimCarUpdate)."""
     rv = 0.0
     if v > 1e-5:
         rv = roll / v
         vm = v * m
         if rv * dt > vm:                # rv dt / m > v, without dividing (m > 0)
             rv = vm / dt
-    rm = math.copysign(min(roll * wb * 0.5, abs(r) * izz_dt), r)
+    rm = roll * wb * 0.5
+    if rm > abs(r) * izz:
+        rm = r * izz
+    else:
+        rm = math.copysign(rm, r)
     return rv, rm
 
 
@@ -584,7 +588,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     # car constants
     a, b, wb, h = cp[i, C_A], cp[i, C_B], cp[i, C_L], cp[i, C_H]
     izz, mass_dry = cp[i, C_IZZ], cp[i, C_MASS]
-    inv_izz, izz_dt = 1.0 / izz, izz / dt
+    inv_izz = 1.0 / izz
     lock, steer_rate, track_f = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, cp[i, C_TF]
     rad0, rad1, rad2, rad3 = cp[i, C_RAD], cp[i, C_RAD + 1], cp[i, C_RAD + 2], cp[i, C_RAD + 3]
     skid = cp[i, C_SKID]
@@ -895,7 +899,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         mz = a * fy_f - b * fy_r - (fx0 * y0 + fx1 * y1 + fx2 * y2 + fx3 * y3)
 
         # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
-        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz_dt, wb, dt)
+        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz, wb, dt)
         inv_m = 1.0 / m
         vxg += ((fx * cy - fy * sy) - rv * vxg) * inv_m * dt
         vyg += ((fx * sy + fy * cy) - rv * vyg) * inv_m * dt
