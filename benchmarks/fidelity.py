@@ -4,7 +4,9 @@ Each trace in ../shared/torcs-traces/ (see its README) is one race of real TORCS
 fixed reference controller. This script drives madsim's World with the same controller from the
 same start (100 m before the line, centred, at rest, after TORCS's 49-message countdown), on
 TORCS's own driver-call schedule (20 or 22 ms, `madsim.physics.schedule.TorcsClock`), with fuel
-use and damage on, and prints per run:
+use and damage on, in a race of 2 laps (`World(race_laps=2)`: a finished car takes no damage, as
+in TORCS); after its finish madsim drives on for as many messages as TORCS's trace has after its
+own (0.2-1.8 s, until TORCS's shutdown). It prints per run:
 
   lap2 %     second-lap (flying lap) time error against TORCS's lastLapTime
   v rms      RMS speedX difference (km/h), both runs resampled every metre of distance raced
@@ -124,11 +126,16 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None, wa
     lt = run.torcs["lastLapTime"]
     laps_done = np.count_nonzero(np.diff(lt) != 0) + (lt[0] != 0)
     run.torcs_lap2 = float(lt[-1]) if laps_done >= 2 else math.nan
+    # TORCS goes on 0.2-1.8 s after the car's finish (its messages are in the trace): madsim
+    # drives as many messages past its own finish, the car finished (no damage, as TORCS)
+    changes = np.flatnonzero(np.diff(lt) != 0) + 1
+    tail = lt.shape[0] - 1 - int(changes[1]) if laps_done >= 2 and changes.size >= 2 else 0
     track = load_track(track_name)
     car = load_car(car_name)
     limit_s = 84.5 + track.length / 10.0
     run.torcs_end = "16 s" if mode == "full" else ("2 laps" if laps_done >= 2 else "DNF")
-    world = World(track, [car], np.random.default_rng(0), fuel=True, damage=True)
+    world = World(track, [car], np.random.default_rng(0), fuel=True, damage=True,
+                  race_laps=None if mode == "full" else 2)
     world.reset(grid=TRACE_GRID)
     suite = SensorSuite(world)
     f = suite.frame()
@@ -170,9 +177,12 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None, wa
             run.madsim_end = "16 s"
             break
         if world.laps[0] >= 3:
-            run.madsim_lap2 = float(world.last_lap_time[0])
-            run.madsim_end = "2 laps"
-            break
+            if not run.madsim_end:
+                run.madsim_lap2 = float(world.last_lap_time[0])
+                run.madsim_end = "2 laps"
+            if tail <= 0:
+                break
+            tail -= 1
         if cur_lap > limit_s:
             run.madsim_end = "DNF"
             break

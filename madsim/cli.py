@@ -201,9 +201,10 @@ def cmd_config_show(args) -> int:
 
 
 def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fuel: bool = False,
-                       damage: bool = True, grid: dict | None = None):
+                       damage: bool = True, grid: dict | None = None, race_laps: int | None = None):
     """A function seed -> World on the starting grid (cars repeat the last name if short);
-    `grid`: the race's Starting Grid values (`World.reset(grid=...)`)."""
+    `grid`: the race's Starting Grid values (`World.reset(grid=...)`); `race_laps`: the race's
+    laps (a car past them has finished and takes no damage; None: no end)."""
     import numpy as np
 
     from madsim.cars import load_car
@@ -215,7 +216,8 @@ def make_world_factory(track_name: str, car_names: list[str], n_cars: int, *, fu
     specs += [specs[-1]] * (n_cars - len(specs))
 
     def make(seed: int):
-        world = World(track, specs[:n_cars], np.random.default_rng(seed), fuel=fuel, damage=damage)
+        world = World(track, specs[:n_cars], np.random.default_rng(seed), fuel=fuel, damage=damage,
+                      race_laps=race_laps)
         world.reset(grid=grid)
         return world
     check_grid(grid)        # a bad grid fails here, before any socket is opened
@@ -247,7 +249,7 @@ def cmd_serve(args) -> int:
     cars = [c for c in args.cars.split(",") if c]
     try:
         make = make_world_factory(args.track, cars, args.clients, fuel=not args.nofuel,
-                                  damage=not args.nodamage, grid=parse_grid(args.grid))
+                                  damage=not args.nodamage, grid=parse_grid(args.grid), race_laps=args.laps)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     server = ScrServer(make, args.clients, tick_schedule=args.tick_schedule, host=args.host, port=args.port, mode=args.mode,

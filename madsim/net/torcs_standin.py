@@ -263,7 +263,8 @@ def make_world_factory(track, plan: RacePlan, *, fuel: bool, damage: bool):
     placements = grid_placements(track, len(specs), plan.grid)
 
     def make(seed: int):
-        world = World(track, specs, np.random.default_rng(seed), fuel=fuel, damage=damage)
+        world = World(track, specs, np.random.default_rng(seed), fuel=fuel, damage=damage,
+                      race_laps=plan.laps)
         world.reset(placements)
         return world
     return make

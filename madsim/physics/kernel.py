@@ -47,7 +47,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
     C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
     C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN, C_BELL, C_IXX, C_IYY, C_RBELL, C_RIXX, C_RIYY, C_RTR2,
-    C_RWB2,
+    C_RWB2, C_FINISH,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
     P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SURF, P_TB0,
@@ -57,7 +57,8 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
-from madsim.physics.suspension import G, body_vertical, ground_contact, relief, surface_index, wheel_loads
+from madsim.physics.suspension import (G, body_vertical, ground_contact, relief, surface_index, takes_damage,
+                                      wheel_loads)
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -71,6 +72,9 @@ forces its two-sample averages (module docstring); at or below it, the implicit 
 PARALLEL_MIN_CARS = 64   # below this many cars the serial loop is faster than threads
 
 _JIT = {"cache": True, "error_model": "numpy"}
+FINISH_ACCEL = 0.2          # a finished car's accel command at most (simuv2 ctrlCheck)
+FINISH_BRAKE = 0.05         # and its brake command at least, above
+FINISH_BRAKE_ABOVE = 30.0   # this forward speed, m/s
 NO_REFCOUNT = {"_nrt": False}
 """For kernels that allocate nothing: without numba's runtime (NRT) no array reference counts
 are kept. numba keeps them with atomic increments and decrements at every array alias, call
@@ -189,22 +193,26 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
 
 
 @numba.njit(inline="always", **_JIT)
-def rolling_drag(roll, v, r, m, izz_dt, wb, dt):
+def rolling_drag(roll, v, r, m, izz, wb, dt):
     """The rolling resistance's drag on the body. roll: the summed rolling resistance, N; v: the
-    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz_dt: yaw inertia over the step,
-    kg m^2/s; wb: wheelbase, m; dt: step, s. Returns (rv, rm): the force is -rv times the
+    speed, m/s; r: the yaw rate, rad/s; m: mass, kg; izz: yaw inertia, kg m^2; wb: wheelbase,
+    m; dt: step, s. Returns (rv, rm): the force is -rv times the
     velocity (rv in N s/m), the yaw moment -rm, N m (docs/physics.md, "Rolling resistance").
     rv is roll / v unless rv dt / m > v, then v m / dt: TORCS 1.3.7's clamp as SimCarUpdate has
     it (read in Debian's simuv2.so), so a crawling car loses v^2 of its speed a step, not all of
-    it. rm is roll wb / 2 against the yaw, at most what stops the yaw in one step (TORCS's own
-    clamp is r izz, without the step time: not taken, see the docs)."""
+    it. rm is roll wb / 2 against the yaw unless that moment over izz exceeds |r| (rad/s^2
+    against rad/s, as TORCS compares them), then r izz: TORCS 1.3.7's clamp (SimCarUpdate)."""
     rv = 0.0
     if v > 1e-5:
         rv = roll / v
         vm = v * m
         if rv * dt > vm:                # rv dt / m > v, without dividing (m > 0)
             rv = vm / dt
-    rm = math.copysign(min(roll * wb * 0.5, abs(r) * izz_dt), r)
+    rm = roll * wb * 0.5
+    if rm > abs(r) * izz:
+        rm = r * izz
+    else:
+        rm = math.copysign(rm, r)
     return rv, rm
 
 
@@ -293,6 +301,16 @@ def track_observed(st, i, pt, surf, tsc, p, q, n, ch, sh):
     st[i, S_ROADZ] = z + relief(pt, surf, tsc, p, q, n, True)
     st[i, S_CURLAP] = st[i, S_TIME] - st[i, S_LAPSTART]
     st[i, S_DIST] = (st[i, S_LAPS] - (st[i, S_BACK] + 1.0)) * length + st[i, S_S]
+
+
+@numba.njit(**_JIT)
+def add_damage(st, cp, damage):
+    """Add the contact solver's damage points (N,) to the cars of st (rows as cp and damage)
+    that have not finished their race (`suspension.takes_damage`, TORCS's finish rule): the
+    one place World and WorldBatch add wall, pit-wall and car-car damage."""
+    for i in range(st.shape[0]):
+        if damage[i] != 0.0 and takes_damage(st, cp, i):
+            st[i, S_DAMAGE] += damage[i]
 
 
 @numba.njit(**_JIT)
@@ -579,7 +597,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     # car constants
     a, b, wb, h = cp[i, C_A], cp[i, C_B], cp[i, C_L], cp[i, C_H]
     izz, mass_dry = cp[i, C_IZZ], cp[i, C_MASS]
-    inv_izz, izz_dt = 1.0 / izz, izz / dt
+    inv_izz = 1.0 / izz
     lock, steer_rate, track_f = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, cp[i, C_TF]
     rad0, rad1, rad2, rad3 = cp[i, C_RAD], cp[i, C_RAD + 1], cp[i, C_RAD + 2], cp[i, C_RAD + 3]
     skid = cp[i, C_SKID]
@@ -598,6 +616,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     tb_r = p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
     tb0, tb1 = cp[i, C_KB] * tb_f, cp[i, C_KB + 1] * tb_f
     tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
+    finish_at = cp[i, C_FINISH]       # crossings at which the car has finished (0: never)
     wear = 1.0 + st[i, S_DAMAGE] / 10000.0
     dragk = st[i, S_DRAGK]
     scx2 = cp[i, C_SCX2] * wear * dragk * dragk
@@ -654,6 +673,22 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     v2_max, r_max = vxg * vxg + vyg * vyg, abs(r)     # (start included: any integrator)
 
     for _ in range(nsub):
+        # --- a finished car goes on at TORCS's "slow pace" (simuv2's ctrlCheck, each step): the
+        # accel command capped at 0.2, the brake at least 0.05 above 30 m/s forward; both
+        # lower the tick's commands themselves (TORCS's ctrl), as a shift's cap does
+        if finish_at > 0.0 and st[i, S_LAPS] >= finish_at:
+            if accel > FINISH_ACCEL:
+                accel = FINISH_ACCEL
+                controls[i, U_ACCEL] = FINISH_ACCEL
+            if brake < FINISH_BRAKE and vxg * cy + vyg * sy > FINISH_BRAKE_ABOVE:
+                brake = FINISH_BRAKE
+                controls[i, U_BRAKE] = FINISH_BRAKE
+                p_brake = brake * cp[i, C_PMAX]
+                tb_f = p_brake * cp[i, C_BRAKE_FRONT]
+                tb_r = p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
+                tb0, tb1 = cp[i, C_KB] * tb_f, cp[i, C_KB + 1] * tb_f
+                tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
+
         # --- steering: rate-limited towards steer * lock; Ackermann (spec 4.2): the inner
         # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|)); each wheel's
         # heading adds its static toe
@@ -873,7 +908,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         mz = a * fy_f - b * fy_r - (fx0 * y0 + fx1 * y1 + fx2 * y2 + fx3 * y3)
 
         # --- integration (spec 4.11): velocities first; rolling resistance cannot reverse them
-        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz_dt, wb, dt)
+        rv, rm = rolling_drag(roll, math.sqrt(vxg * vxg + vyg * vyg), r, m, izz, wb, dt)
         inv_m = 1.0 / m
         vxg += ((fx * cy - fy * sy) - rv * vxg) * inv_m * dt
         vyg += ((fx * sy + fy * cy) - rv * vyg) * inv_m * dt

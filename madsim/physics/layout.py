@@ -169,7 +169,9 @@ C_RIYY = C_RIXX + 1       # 1 / pitch inertia, 1/(kg m^2)
 C_RWB2 = C_RIYY + 1       # 1 / (front pair's x - rear pair's x), 1/m (`suspension.wheel_loads`)
 C_RTR2 = C_RWB2 + 1       # 1 / (left pair's y - right pair's y), 1/m
 C_DMGK = C_RTR2 + 1       # damage factor of the driver's skill (spec 4.12; 0: damage off)
-N_CAR = C_DMGK + 1
+C_FINISH = C_DMGK + 1     # start-line crossings at which the car has finished (race laps + 1; 0: never):
+                          # no damage after them, TORCS's slow pace (kernel.advance_car)
+N_CAR = C_FINISH + 1
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,

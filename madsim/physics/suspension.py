@@ -14,6 +14,7 @@ import numba
 from madsim.physics import elementary as el
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DMGK, C_DREB1, C_DREB2, C_H,
+    C_FINISH, S_LAPS,
     C_PACK, C_RBELL, C_RIDE0, C_RIXX, C_RIYY, C_RTR2, C_RWB2, C_SPRING, C_VBUMP, C_VREB, C_W0,
     C_WMASS, C_WX, C_WY,
     P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L,
@@ -363,6 +364,15 @@ def surface_index(pt, p, q, nw, half):
     return int(pt[p, P_SURF])
 
 
+@numba.njit(inline="always", **_JIT)
+def takes_damage(st, cp, i):
+    """True while car i has not finished its race: TORCS 1.3.7 adds no damage (walls, pit walls,
+    cars, bottoming) once the car's RM_CAR_STATE_FINISH is set, i.e. once it has crossed the
+    line more often than the race has laps (cp's C_FINISH = laps + 1 crossings; 0: no end)."""
+    finish = cp[i, C_FINISH]
+    return finish <= 0.0 or st[i, S_LAPS] < finish
+
+
 @numba.njit(**_JIT)
 def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
     """The packers' ground contact of car i (TORCS 1.3.7's SimCarCollideZ, docs/physics.md,
@@ -371,7 +381,8 @@ def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
     the road's unit normal under the wheel (the piece's slope along the track, its banking
     across) and e, d the wheel's surface's `rebound` and `dammage`, the body's velocity
     (vxg, vyg, vz; m/s) into the road `u = (v . n) e`, when negative, is taken off (`v -= u n`)
-    and the car takes `int(d |u| x skill damage factor)` damage points. Not inlined: it runs
+    and the car takes `int(d |u| x skill damage factor)` damage points unless it has finished
+    (`takes_damage`). Not inlined: it runs
     only while a wheel is on its packers. (cpsi, spsi): cos, sin of yaw - track heading as
     `wheel_loads` had them. Returns the new (vxg, vyg), m/s; updates z, vz and the damage."""
     p, q, n = _cg_on_piece(st, i, pt, tsc)
@@ -406,7 +417,8 @@ def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
             vxg -= nx * u
             vyg -= ny * u
             vz -= inv * u
-            st[i, S_DAMAGE] += math.floor(surf[j, SURF_DAMMAGE] * -u * cp[i, C_DMGK])
+            if takes_damage(st, cp, i):
+                st[i, S_DAMAGE] += math.floor(surf[j, SURF_DAMMAGE] * -u * cp[i, C_DMGK])
     st[i, S_Z], st[i, S_VZ] = z, vz
     return vxg, vyg
 

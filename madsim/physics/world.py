@@ -51,11 +51,16 @@ class World:
             "zero" replaces them by 0 and counts them per car in `nan_count`.
         threads: share the cars among numba's threads when there are many (>= 64); results are
             bit-identical either way. Off by default: it only pays on an otherwise idle machine.
+        race_laps: the race's length in laps (None or 0: no end). A car that has crossed the
+            start line more than `race_laps` times has finished (TORCS's RM_CAR_STATE_FINISH)
+            and takes no more damage, and its controls follow TORCS's slow pace (accel <= 0.2,
+            brake >= 0.05 above 30 m/s; docs/physics.md, "Damage after the finish"). Settable.
     """
 
     def __init__(self, track: Track, cars: list[CarSpec], rng: np.random.Generator, *,
                  fuel: bool = False, damage: bool = True, skill: str | list[str] = "semi-pro",
-                 contact: bool = True, nan_policy: str = "raise", threads: bool = False):
+                 contact: bool = True, nan_policy: str = "raise", threads: bool = False,
+                 race_laps: int | None = None):
         if not isinstance(track, Track):
             raise TypeError(f"track must be a Track, got {type(track).__name__}")
         cars = list(cars)
@@ -83,6 +88,7 @@ class World:
         self._cp, self._curve_w, self._curve_t = car_table(self.cars, skills, self.damage_on)
         self._pt, self._surf, self._tsc = piece_table(track)
         self._top_gear = self._cp[:, L.C_TOP].astype(np.int64)
+        self.race_laps = race_laps
         # cars are independent inside a call, so threads give bit-identical results
         parallel = threads and n >= kernel.PARALLEL_MIN_CARS
         self._advance = kernel.advance_parallel if parallel else kernel.advance
@@ -118,6 +124,23 @@ class World:
         self.reset()
 
     # --- set-up -------------------------------------------------------------------------------
+
+    @property
+    def race_laps(self) -> int | None:
+        """The race's laps (None: no end); past them a car has finished: no damage, slow pace."""
+        finish = int(self._cp[0, L.C_FINISH])
+        return finish - 1 if finish > 0 else None
+
+    @race_laps.setter
+    def race_laps(self, laps: int | None) -> None:
+        self._cp[:, L.C_FINISH] = finish_crossings(laps)
+
+    @property
+    def finished(self) -> np.ndarray:
+        """(N,) bool: the cars that have finished the race (more start-line crossings than
+        `race_laps`; all False without `race_laps`)."""
+        finish = self._cp[:, L.C_FINISH]
+        return (finish > 0) & (self.state[:, L.S_LAPS] >= finish)
 
     @property
     def contact_active(self) -> bool:
@@ -298,7 +321,7 @@ class World:
                 car |= hit_c
                 pairs.extend(tuple(p) for p in rep.pairs)
                 if self.damage_on:
-                    st[:, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
+                    kernel.add_damage(st, self._cp, np.asarray(rep.damage, dtype=np.float64))
                 kernel.refresh(st, self._cp, self._pt, self._surf, self._tsc, True)
             if k >= nsub:
                 break
@@ -373,6 +396,17 @@ class World:
     def wheel_load(self) -> np.ndarray:
         """(N, 4) wheel loads, N, wheel order FR, FL, RR, RL."""
         return np.array(self.state[:, L.S_FZ:L.S_FZ + 4])
+
+
+def finish_crossings(laps) -> int:
+    """A race of `laps` laps as the car table stores it (C_FINISH): the start-line crossings at
+    which a car has finished, laps + 1 (the first crossing, from the grid, starts lap 1), or 0
+    for None (no end)."""
+    if laps is None:
+        return 0
+    if isinstance(laps, bool) or not isinstance(laps, (int, np.integer)) or laps < 0:
+        raise ValueError(f"race_laps must be None or an integer >= 0, got {laps!r}")
+    return int(laps) + 1
 
 
 def check_grid(grid: dict | None) -> dict | None:

@@ -43,7 +43,7 @@ from madsim.physics.sensors import (
     focus_kernel,
 )
 from madsim.physics.tables import car_table, piece_table
-from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available
+from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available, finish_crossings
 from madsim.physics.contact_kernels import N_PRM, SNAP_COLUMNS
 from madsim.physics.world_batch_kernels import (
     advance_slots,
@@ -77,6 +77,7 @@ class WorldBatch:
     docstring). contact, fuel, damage: as `World` (and `LocalBackend`); threads: share the
     slots among numba's threads (bit-identical results); focus: compute SCR focus readings
     (once per second per car, in Python, as `SensorSuite`) - off, `sensors` keeps focus at -1.
+    race_laps: as `World` (every slot's race; read at each `start`).
 
     Per slot e: `offsets[e]` first row, `n_cars[e]` cars; arrays with one row per car:
     `state`, `controls` (the caller writes them before `step`), `sensors`, `hits` (contact
@@ -85,12 +86,14 @@ class WorldBatch:
 
     def __init__(self, n_slots: int, capacity: int, *, contact: bool = True, fuel: bool = False,
                  damage: bool = True, threads: bool = False, focus: bool = False,
-                 angles_deg=SCR_DEFAULT_ANGLES_DEG):
+                 angles_deg=SCR_DEFAULT_ANGLES_DEG, race_laps: int | None = None):
         if n_slots < 1 or capacity < 1:
             raise ValueError(f"n_slots and capacity must be >= 1, got {n_slots}, {capacity}")
         self.n_slots, self.capacity = int(n_slots), int(capacity)
         self.contact = bool(contact) and contact_available()
         self.fuel, self.damage, self.focus = bool(fuel), bool(damage), bool(focus)
+        self.race_laps = race_laps
+        finish_crossings(race_laps)
         c = self.n_slots * self.capacity
         self.offsets = np.arange(self.n_slots, dtype=np.int64) * self.capacity
         self.n_cars = np.zeros(self.n_slots, dtype=np.int64)
@@ -181,6 +184,7 @@ class WorldBatch:
         self.state[rows] = kind.world.state
         self.race_pos[rows] = kind.world.race_pos
         self._cp[rows] = kind.cp
+        self._cp[rows, L.C_FINISH] = finish_crossings(self.race_laps)
         self._put_curves(rows, kind)
         self.controls[rows] = 0.0
         self.hits[rows] = False
@@ -336,7 +340,7 @@ class WorldBatch:
             self.hits[rows] |= hit_w | hit_c
             self.contact_pairs[slot].extend(tuple(p) for p in rep.pairs)
             if self.damage:
-                st[rows, L.S_DAMAGE] += np.asarray(rep.damage, dtype=np.float64)
+                kernel.add_damage(st[rows], self._cp[rows], np.asarray(rep.damage, dtype=np.float64))
             t = int(self._track[slot])
             pt, surf, tsc = self._tables[t][:3]
             kernel.refresh(st[rows], self._cp[rows], pt, surf, tsc, True)

@@ -58,12 +58,12 @@ from madsim.physics.world import World
 from madsim.tracks import load_track
 
 EXPECTED = {
-    "one_car": "8aae759758cea3750926529da1809c6d07fba4d3dbab26a98986dd69fb50a77e",
-    "six_contact": "5ebee338cb695f8fd2ec6989b4469edd306e5acfca15c51d2e4269e90e4a5512",
-    "four_wd": "8663f09fc7aeb3541fa83058ef862ed2eff9208c14685c35a49bcc0321bbecc6",
-    "vec_traffic": "fdb701182f80e75dd3b1f688c154ca057c23abb1c71581dd13df8d36ea777984",
-    "env_ts": "f9303213575500ea6efa65c656bab6a9b99bff79317a18769d924bf9c4d0c32d",
-    "rough_track": "5b989b31254616763bf63165c0ea42af343e8eb031da041c2b0f96001bf8829a",
+    "one_car": "6b76b6190821ba6f860b4fe64d85f182544b0ed7440938ac74819d0819586745",
+    "six_contact": "7674c5fcde52cfa9864fffcd740b8f4e3a95527dacad997ece175e259866a300",
+    "four_wd": "6e36b6abed131aeacc720a0e61211ea03bf5f1d54c55d5bef0e1ee985cba5f68",
+    "vec_traffic": "a8020073ed69e8911251dc7050240d813eed94d92cabefbb57796db03595deb7",
+    "env_ts": "51d7a13ec1d91b1b451efd9e822b9e30e05c111c0f1ae872f9f31e2ef4a7745b",
+    "rough_track": "1cc3d3f3f8b9daeba749d4de9afbefb41dd7b0223bfffd1c79aba3d2a1d968b5",
 }
 
 
