@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -54,11 +55,13 @@ def pytest_sessionstart(session):
     alone."""
     if not _xdist_controller(session.config):
         return
+    start = time.monotonic()
     children = [subprocess.Popen([sys.executable, "-c", code], cwd=ROOT)
                 for code in (WARM_UP + WARM_UP_ENVS, WARM_UP_BATCH)]
     codes = [child.wait() for child in children]
     if any(codes):
         raise pytest.UsageError(f"the kernel warm-up failed (exit codes {codes})")
+    print(f"madsim kernels compiled or loaded in {time.monotonic() - start:.0f} s", file=sys.stderr)
     os.environ[WARMED] = "1"
 
 
