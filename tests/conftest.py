@@ -74,11 +74,23 @@ LONGEST_FIRST = ("test_every_readme_and_docs_command_runs_as_written", "test_exp
                  "test_mixed_traffic_on_the_narrow_street", "test_threaded_contact_stepping_is_bit_identical")
 
 
+@pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(config, items):
     """Under xdist (in each worker; every worker sorts alike): the longest tests first, the rest
-    in collection order."""
+    in collection order. And with `--dist loadgroup`, each `xdist_group` test's node id gets its
+    group's suffix (`...@name`), which xdist's scheduler groups by: pytest-xdist 3.8 writes it to
+    `item._nodeid`, which pytest 9 no longer reads (the id is `item._id`), so without this the
+    groups are silently ignored."""
     if not hasattr(config, "workerinput"):
         return
+    if config.getvalue("loadgroup"):
+        from _pytest.nodeid import coerce_node_id
+
+        for item in items:
+            names = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                            for m in item.iter_markers("xdist_group")})
+            if names and "@" not in item.nodeid.rpartition("]")[2]:
+                item._id = coerce_node_id(f"{item.nodeid}@{'_'.join(names)}")
     rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
 
     def key(item):
