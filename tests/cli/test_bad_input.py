@@ -76,6 +76,7 @@ def test_run_render_without_a_display_says_so(capsys, monkeypatch):
     _fails_with_one_line(capsys, ["run", "--render"], "needs a display", "--video")
 
 
+@pytest.mark.xdist_group("timing")       # a wall-clock budget: beside tests/cli/test_interrupts.py's
 @pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed")
 def test_run_render_in_a_window_stops_on_sigterm(tmp_path):
     """With a (virtual) display the window opens; SIGTERM ends the run, not just the drawing."""

@@ -19,6 +19,8 @@ import pytest
 from udp import default_sigint, free_ports
 
 EXIT_BUDGET_S = 2.0
+# wall-clock budgets: under pytest-xdist these run one after another in one worker
+pytestmark = pytest.mark.xdist_group("timing")
 
 
 def _start(args, cwd):

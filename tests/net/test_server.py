@@ -31,6 +31,8 @@ HALF_WIDTH_M = 7.5
 START_S = 180.0                # bound on a server's start-up (a cold numba cache compiles ~1 min)
 WAIT_S = 30.0                  # bound on anything else a test waits for (a busy CI box)
 SERVE = [sys.executable, "-m", "madsim.cli", "serve"]
+# wall-clock pacing and timeouts: under pytest-xdist these run one after another in one worker
+pytestmark = pytest.mark.xdist_group("timing")
 
 
 
