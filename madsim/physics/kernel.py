@@ -585,9 +585,9 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     `wheel_loads`, `body_vertical`, `track_update` and `track_observed` are compiled on their
     own and called, not inlined into this body at numba's IR level: numba's passes grow faster
     than linearly with a function's size, and inlined they made this kernel's first compile
-    2.2x longer (55.6 s against 25.6 s of CPU on the 2-core AMD EPYC) for no speed measurable in
+    1.8x longer (55.6 s against 31 s of CPU on the 2-core AMD EPYC) for no speed measurable in
     `bench_substep`. The small helpers on the sub-step's chain (`_axle_spin`, the tyre's) stay
-    inlined: called, `_axle_spin` cost ~5 %."""
+    inlined: called, `_axle_spin` cost ~5 % on madsim-speedway."""
     steer_cmd = min(max(controls[i, U_STEER], -1.0), 1.0)
     accel = min(max(controls[i, U_ACCEL], 0.0), 1.0)
     brake = min(max(controls[i, U_BRAKE], 0.0), 1.0)
