@@ -4,10 +4,12 @@
 controls `sab` (n, 3) or T-S targets `lane_des`, `speed_des_kmh` (n,). `fill_controls`: the
 controls (m, 4: steer, accel, brake, gear) of the coming tick from the latest sensor rows
 (m, 79): the T-S controller (madsim.agents.pid.ts_act) or the held S-A-B controls, the gear from
-`gear` (manual) or snakeoil's gearbox.
+`gear` (manual) or snakeoil's gearbox. `clip_actions`: actions into the Box, finiteness checked.
 """
 
 from __future__ import annotations
+
+import math
 
 from numba import njit
 
@@ -48,3 +50,19 @@ def speed_gears(speed_kmh, out):
     """out[i] = speed_gear(speed_kmh[i]) (float gears)."""
     for i in range(speed_kmh.shape[0]):
         out[i] = speed_gear(speed_kmh[i])
+
+
+@njit(cache=True)
+def clip_actions(a, low, high, out):
+    """out = a (m, dim) clipped into [low, high] (dim,), as np.minimum(high, np.maximum(low, a))
+    to the bit (NaN kept); returns the flat index i * dim + j of the first non-finite a[i, j],
+    or -1."""
+    bad = -1
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            x = a[i, j]
+            if bad < 0 and not math.isfinite(x):
+                bad = i * a.shape[1] + j
+            y = low[j] if low[j] >= x else x
+            out[i, j] = high[j] if high[j] <= y else y
+    return bad

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from madsim.agents import component_kernel as ck
-from madsim.agents.action_kernel import fill_controls, speed_gears, take_actions
+from madsim.agents.action_kernel import clip_actions, fill_controls, speed_gears, take_actions
 from madsim.agents.pid import (
     CTRL_STATE,
     PIDController,
@@ -112,15 +112,6 @@ class ComponentBatch:
         return out
 
 
-def weighted_sum(values: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(total (m,), terms (k, m)) of reward values (k, m) with signed weights (k,) float64,
-    summed in component order (what every env reports)."""
-    terms = np.empty_like(values)
-    total = np.zeros(values.shape[1])
-    ck.weigh(values, weights, terms, total)
-    return total, terms
-
-
 class BatchedTS:
     """madsim.agents.pid.TrackSpeedController over slots: the same compiled controller
     (pid.ts_act), per-slot state in arrays."""
@@ -190,8 +181,16 @@ class ActionMap:
         return self.pid if self.ts else self._no_ts
 
     def clip(self, actions: np.ndarray) -> np.ndarray:
-        """Actions (m, dim) clipped into the Box."""
-        return np.minimum(self.high, np.maximum(self.low, actions))
+        """Actions (m, dim) or (dim,) clipped into the Box."""
+        return self.check(actions)[0]
+
+    def check(self, actions: np.ndarray) -> tuple[np.ndarray, int]:
+        """(actions (m, dim) or (dim,) clipped into the Box, float64; the flat index of the
+        first non-finite value, or -1): one compiled call."""
+        a = np.ascontiguousarray(actions, dtype=np.float64)
+        out = np.empty_like(a)
+        bad = clip_actions(a.reshape(-1, self.dim), self.low, self.high, out.reshape(-1, self.dim))
+        return out, bad
 
     def start(self, e: int, row: np.ndarray, target_speed: float, noise_std: float) -> None:
         """Slot e's episode starts: first sensor row (79,), target speed m/s, noise std."""

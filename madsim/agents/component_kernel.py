@@ -100,14 +100,3 @@ def evaluate(codes, par, state, slots, prev, cur, length, collision, out):
                         off = True
                 v = 1.0 if off else 0.0
             out[c, i] = v
-
-
-@njit(cache=True)
-def weigh(values, weights, terms, total):
-    """terms[c, i] = weights[c] * values[c, i] (signed weights, (k,)); total[i] += the terms
-    in component order (the order every env reports)."""
-    for c in range(values.shape[0]):
-        for i in range(values.shape[1]):
-            t = weights[c] * values[c, i]
-            terms[c, i] = t
-            total[i] += t

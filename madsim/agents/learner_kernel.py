@@ -14,10 +14,24 @@ controls; `run` (m,) episodes, `rows` (m,) their learners' rows of flat and u.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from madsim.agents.action_kernel import fill_controls
 from madsim.agents.component_kernel import evaluate
+from madsim.physics.sensors import N_VALUES
+
+
+class LearnerScratch:
+    """Per-tick scratch of `tick_controls` / `tick_outcome` for up to n learners: their sensor
+    rows before and after the tick, track lengths and contact flags, the k rewards' and kd
+    dones' values, the controls."""
+
+    def __init__(self, n: int, k: int, kd: int):
+        self.prev, self.cur = np.zeros((n, N_VALUES)), np.zeros((n, N_VALUES))
+        self.length, self.collision = np.zeros(n), np.zeros(n, dtype=bool)
+        self.r_vals, self.d_vals = np.zeros((k, n)), np.zeros((kd, n))
+        self.controls = np.zeros((n, 4))
 
 
 @njit(cache=True)
@@ -56,6 +70,19 @@ def tick_outcome(r_codes, r_par, r_state, d_codes, d_par, d_state, weights, is_t
     rv, dv = r_vals[:, :m], d_vals[:, :m]
     evaluate(r_codes, r_par, r_state, run, prev[:m], cur[:m], length[:m], collision[:m], rv)
     evaluate(d_codes, d_par, d_state, run, prev[:m], cur[:m], length[:m], collision[:m], dv)
+    return tally(weights, is_trunc, running, rows, rv, dv, first, total, terms, ticks, term, trunc,
+                 fired, u)
+
+
+@njit(cache=True)
+def tally(weights, is_trunc, running, rows, rv, dv, first, total, terms, ticks, term, trunc, fired,
+          u):
+    """The bookkeeping of `tick_outcome` from the tick's reward values rv (k, m) and done values
+    dv (kd, m) (1.0 / 0.0) of the m episodes at positions running (m,) of the step's arrays,
+    whose control rows are rows (m,): weighted terms and totals, ticks, which ended (their
+    stop controls). Compacts `running` to the episodes still running; returns their number.
+    (The envs call it directly when a reward or done is plain Python.)"""
+    m = running.shape[0]
     left = 0
     for i in range(m):
         p = running[i]
@@ -92,7 +119,7 @@ def tick_outcome(r_codes, r_par, r_state, d_codes, d_par, d_state, weights, is_t
 def observe_rows(flat, rows, wire_index, scale, low, high, normalise, gain, offset, out, out_rows):
     """out[out_rows[i]] = the observation of sensor row flat[rows[i]] (float32): the values at
     wire_index, times scale, clipped into [low, high]; with normalise, times gain plus offset,
-    clipped into [-1, 1] (`ObservationBuilder._finish`, to the bit)."""
+    clipped into [-1, 1] (float64 arithmetic, rounded to float32 once)."""
     for i in range(rows.shape[0]):
         r, o = rows[i], out_rows[i]
         for j in range(wire_index.shape[0]):

@@ -27,12 +27,9 @@ import gymnasium
 import numpy as np
 
 from madsim.agents.learner_kernel import observe_rows
-from madsim.physics.sensors import SENSOR_OFFSETS, SENSOR_WIDTHS
+from madsim.physics.sensors import N_VALUES, SENSOR_OFFSETS, SENSOR_WIDTHS
 
-try:    # np.clip's own ufunc (np.clip ends in it for float bounds): the same values without
-    from numpy._core.umath import clip as _clip    # its ~2 us of Python wrappers per call
-except ImportError:         # pragma: no cover - another numpy layout
-    _clip = np.clip
+_ROW0 = np.zeros(1, dtype=np.int64)
 
 __all__ = [
     "FIELD_BOUNDS",
@@ -147,7 +144,7 @@ class ObservationBuilder:
         nlo, nhi = np.array(nlo), np.array(nhi)
         self._gain = 2.0 / (nhi - nlo)
         self._offset = -1.0 - nlo * self._gain
-        self._raw = np.zeros(self.size)
+        self._row = np.zeros(1, dtype=np.int64)     # from_frame's row, one compiled call
         self._wire_index = np.concatenate(        # positions in a SensorFrame's wire-order row
             [np.arange(SENSOR_OFFSETS[n][0], SENSOR_OFFSETS[n][0] + FIELD_WIDTH[n])
              for n, _ in self.slices])
@@ -169,28 +166,35 @@ class ObservationBuilder:
 
     def __call__(self, row: Mapping) -> np.ndarray:
         """Observation (size,) float32 from one car's SCR row."""
-        raw = self._raw
+        wire = np.zeros(N_VALUES)
         for name, sl in self.slices:
-            raw[sl] = row[name]
-        return self._finish(raw)
+            o = SENSOR_OFFSETS[name][0]
+            wire[o:o + sl.stop - sl.start] = row[name]
+        return self.from_wire(wire)
 
     def from_frame(self, frame, k: int) -> np.ndarray:
         """Observation of car row k of a SensorFrame (same result as `self(frame.row(k))`)."""
-        return self.from_wire(frame.flat[k])
+        out = np.empty((1, self.size), dtype=np.float32)
+        self._row[0] = k
+        self.observe_rows(frame.flat, self._row, out, _ROW0)
+        return out[0]
 
     def from_wire(self, values: np.ndarray) -> np.ndarray:
         """Observation from one car's 79 sensor values in wire order (a SensorFrame row)."""
-        return self._finish(values[self._wire_index])
+        out = np.empty((1, self.size), dtype=np.float32)
+        self.observe_rows(np.ascontiguousarray(values, dtype=np.float64)[None, :], _ROW0, out,
+                          _ROW0)
+        return out[0]
+
+    def kernel_args(self) -> tuple:
+        """`observe_rows`'s arrays: (wire_index, scale, low, high, gain, offset)."""
+        return (self._wire_index, self._scale, self._low, self._high, self._gain, self._offset)
 
     def observe_rows(self, flat: np.ndarray, rows: np.ndarray, out: np.ndarray,
                      out_rows: np.ndarray) -> None:
         """out[out_rows[i]] = the observation of wire-order sensor row flat[rows[i]] (one
-        compiled call; the same bits as `from_wire`). out: (>= max(out_rows) + 1, size) float32."""
+        compiled call, `learner_kernel.observe_rows`: the values at their wire positions,
+        scaled, clipped into the bounds, normalised). out: (>= max(out_rows) + 1, size)
+        float32."""
         observe_rows(flat, rows, self._wire_index, self._scale, self._low, self._high,
                      self.normalise, self._gain, self._offset, out, out_rows)
-
-    def _finish(self, raw: np.ndarray) -> np.ndarray:
-        x = _clip(raw * self._scale, self._low, self._high)
-        if self.normalise:
-            x = _clip(x * self._gain + self._offset, -1.0, 1.0)
-        return x.astype(np.float32)

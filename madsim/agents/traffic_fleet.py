@@ -62,6 +62,11 @@ class TrafficFleet:
         self._n_python += sign * (kind in (tk.K_USER, tk.K_FOREIGN))
         self._n_events += sign * (kind in (tk.K_USER, tk.K_LANE_SWITCH, tk.K_STOPPING))
 
+    def compiled_only(self) -> bool:
+        """True when `act` is `traffic_kernel.traffic_tick` alone: every car built-in, none
+        that draws or reports (a compiled caller may then call it itself)."""
+        return self._n_python == 0 and self._n_events == 0
+
     def act(self, sensors: np.ndarray, controls: np.ndarray, rows: np.ndarray) -> None:
         """Controls (steer, accel, brake, gear) of `rows` for the coming tick into
         controls[rows, :4], from sensors (n, 79) float64 in wire order."""

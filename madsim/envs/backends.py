@@ -6,7 +6,8 @@ then learners, see `madsim.envs.episode`). The contract:
     frame = backend.start(key, track, cars, placements, noisy=..., rng=...,
                           tick_schedule=...)                        # first sensors
     frame = backend.step(controls)      # controls (N, 5): steer, accel, brake, gear, clutch
-    hits = backend.collisions()         # (N,) bool: contact during the last tick, or None
+    hits = backend.collisions()         # (N,) bool: contact during the last tick (a buffer
+                                        # the next call overwrites), or None
 
 Frames are `madsim.physics.sensors.SensorFrame`s (SCR units, one row per car); `step`
 returns None when the simulator ended the race on its own. `check(cfg)` refuses, at env
@@ -84,6 +85,7 @@ class LocalBackend:
         while len(self._worlds) > self.max_worlds:
             self._worlds.popitem(last=False)
         self.world, self.suite = pair
+        self._hits = np.zeros(self.world.n_cars, dtype=bool)
         self.world.reset(placements)
         self.suite.reset()
         self.suite.noisy = bool(noisy)
@@ -99,7 +101,8 @@ class LocalBackend:
         return self.suite.frame()
 
     def collisions(self) -> np.ndarray:
-        return self.world.contact_wall | self.world.contact_car
+        w = self.world
+        return np.logical_or(w.contact_wall, w.contact_car, out=self._hits)
 
     def close(self) -> None:
         self._worlds.clear()

@@ -23,25 +23,29 @@ index, row, car, placement (s m, n m), tick_s) and `act(row) -> (steer, accel, b
 row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`). Every tick one
 `TrafficFleet` call drives them all (the built-in behaviours compiled, other objects by `act`).
 
-Each agent's action mapping, T-S controller, rewards and dones are the batch-first code of
-`madsim.agents.component_batch` (what make_vec runs over its episodes), here a batch of one per agent.
+Each agent's action mapping, T-S controller, rewards and dones are the batch-first code
+make_vec runs over its episodes (`madsim.agents.component_batch`, `madsim.agents.learner_kernel`),
+here a batch of one per agent. With one learner on a World in this process (the usual
+MadrasEnv) a step's ticks are one compiled call (`madsim.envs.env_tick`: the same kernels in the
+same order, ~27 us a S-A-B step on a slow 2-core machine), which leaves to Python only what it
+cannot do: Python traffic behaviours, contact near a car, sensor noise, Python rewards or dones.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
-import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium
 import numpy as np
 
-from madsim.agents.component_batch import ActionMap, ComponentBatch, weighted_sum
+from madsim.agents.component_batch import ActionMap, ComponentBatch
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
+from madsim.agents.learner_kernel import LearnerScratch, tally, tick_controls, tick_outcome
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController, speed_gear
 from madsim.agents.sensor_row import SensorRow
@@ -56,14 +60,14 @@ from madsim.envs.config import (
     action_space,
     load_config,
 )
+from madsim.envs.env_tick import CONTROLS, DONE, SENSE, STEP, TRAFFIC, EnvTick
 from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
-from madsim.physics.sensors import O_SX
+from madsim.physics.sensors import O_SX, SensorFrame
 
 __all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
 
 _STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
 _SLOT0 = np.zeros(1, dtype=np.int64)
-_HIT, _NO_HIT = np.ones(1, dtype=bool), np.zeros(1, dtype=bool)
 
 
 def default_traffic_factory() -> Callable[[TrafficConfig], Any]:
@@ -100,8 +104,12 @@ def episode_seed(seed: int | None, np_random: np.random.Generator) -> int:
 
 class _StageAgent:
     """One learning agent in one curriculum stage, as the env sees it: action -> controls every
-    tick, its rewards and dones. Per-episode state lives in its reward/done/PID objects (reset
-    each episode). (Not a driver: in madsim a driver chooses actions, `madsim.drivers`.)"""
+    tick, its rewards and dones, a batch of one of the code make_vec runs over its episodes
+    (madsim.agents.learner_kernel: `tick_controls` before a tick, `tick_outcome` after it; a
+    plain-Python reward or done goes through `ComponentBatch.evaluate` and `tally`). Per-episode
+    state lives in its action map and component batches (reset each episode); per-step
+    outcome in its step arrays. (Not a driver: in madsim a driver chooses actions,
+    `madsim.drivers`.)"""
 
     def __init__(self, agent: AgentConfig, cfg: ScenarioConfig, space: gymnasium.spaces.Box):
         s = cfg.server
@@ -124,13 +132,26 @@ class _StageAgent:
         self.reward_components = [c for _, _, c in rewards]
         self.rewards = ComponentBatch(self.reward_components, 1)
         self.done_names = [name for name, _ in dones]
-        self.truncation = [c.truncation for _, c in dones]
+        self.is_trunc = np.array([c.truncation for _, c in dones], dtype=bool)
         self.done_components = [c for _, c in dones]
         self.dones = ComponentBatch(self.done_components, 1)
-        self._length = np.zeros(1)
+        self.python = bool(self.rewards.python or self.dones.python)
+        k, kd = len(self.reward_names), len(self.done_names)
+        self.scratch = LearnerScratch(1, k, kd)
+        self.track_length = np.zeros(1)
+        self.rows = np.zeros(1, dtype=np.int64)       # the agent's car row in the episode
+        # the step's outcome, as make_vec's per-episode step arrays (one position)
+        self.total, self.terms = np.zeros(1), np.zeros((k, 1))
+        self.ticks = np.zeros(1, dtype=np.int64)
+        self.term, self.trunc = np.zeros(1, dtype=bool), np.zeros(1, dtype=bool)
+        self.fired = np.zeros((1, kd), dtype=bool)
+        self.running = np.zeros(1, dtype=np.int64)
+        self.action: np.ndarray | None = None
+        self.ended: tuple[str, ...] = ()      # an end that is not a done: ServerEnded, EpisodeEnd
+        self.frame = None                       # the frame of its observation
 
-    def check(self, action) -> list[float]:
-        """The action as a list of floats clipped into the Box; ValueError if malformed."""
+    def check(self, action) -> np.ndarray:
+        """The action (dim,) float64 clipped into the Box; ValueError if malformed."""
         try:
             a = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError):
@@ -138,43 +159,83 @@ class _StageAgent:
         if a.shape != (self.dim,):
             raise ValueError(f"action for agent {self.name!r} must have shape ({self.dim},), "
                              f"got {a.shape}")
-        values = a.tolist()
-        for i, v in enumerate(values):
-            if not math.isfinite(v):
-                raise ValueError(f"action for agent {self.name!r} has a non-finite value at "
-                                 f"index {i}: {v}")
-        return self.actions.clip(a).tolist()
+        clipped, bad = self.actions.check(a)
+        if bad >= 0:
+            raise ValueError(f"action for agent {self.name!r} has a non-finite value at "
+                             f"index {bad}: {a[bad]}")
+        return clipped
 
-    def begin(self, action: list[float], rng: np.random.Generator) -> None:
-        """Take this step's (checked) action: add noise, map to controls / PID targets."""
-        self.actions.begin(_SLOT0, np.array([action]), [rng])
+    def begin(self, action: np.ndarray, rng: np.random.Generator) -> None:
+        """Take this step's (checked) action: add noise, map to controls / PID targets; clear
+        the step's outcome."""
+        self.action = action
+        self.actions.begin(_SLOT0, action[None, :], (rng,))
+        self.total[0] = 0.0
+        self.ticks[0] = 0
+        self.term[0] = self.trunc[0] = False
+        self.fired[:] = False
+        self.running[0] = 0
+        self.ended = ()
 
-    def fill(self, u: np.ndarray, row: np.ndarray) -> None:
-        """Write the controls of the coming tick into u (5,) from the latest sensors (79,)."""
-        u[:4] = self.actions.controls(_SLOT0, row[None, :])[0]
+    def fill(self, flat: np.ndarray, u: np.ndarray) -> None:
+        """Write the controls of the coming tick into the agent's row of u (N, 5) from the
+        latest sensors flat (N, 79) (kept as the tick's `prev`)."""
+        a, ts, sc = self.actions, self.actions.controller, self.scratch
+        tick_controls(_SLOT0, self.rows, flat, sc.prev, a.ts, a.manual, a.sab, a.gear, ts.state,
+                      ts.params, ts.fresh, ts.lane_des, ts.speed_des_kmh, sc.controls, u)
 
-    def reset(self, row: np.ndarray, track_length: float) -> None:
-        """Start an episode from the agent's first sensor row (79,) on a track of length m."""
+    def outcome(self, flat: np.ndarray, hits: np.ndarray, u: np.ndarray, first: bool) -> bool:
+        """Rewards and dones of the tick just done from the sensors flat (N, 79) and contact
+        flags hits (N,) after it; an agent that ended gets the stop controls in u. True while
+        the agent is still running."""
+        sc = self.scratch
+        if not self.python:
+            rw, dn = self.rewards, self.dones
+            return tick_outcome(rw.codes, rw.par, rw.state, dn.codes, dn.par, dn.state,
+                                self.weights, self.is_trunc, self.running, _SLOT0, self.rows,
+                                flat, hits, self.track_length, sc.prev, sc.cur, sc.length,
+                                sc.collision, sc.r_vals, sc.d_vals, first, self.total,
+                                self.terms, self.ticks, self.term, self.trunc, self.fired,
+                                u) > 0
+        prev, cur = sc.prev[:1], flat[self.rows]
+        hit = hits[self.rows]
+        actions = [self.action.tolist()]
+        r_vals = self.rewards.evaluate(_SLOT0, prev, cur, self.track_length, hit, actions)
+        d_vals = self.dones.evaluate(_SLOT0, prev, cur, self.track_length, hit, actions)
+        return tally(self.weights, self.is_trunc, self.running, self.rows, r_vals, d_vals, first,
+                     self.total, self.terms, self.ticks, self.term, self.trunc, self.fired,
+                     u) > 0
+
+    def end(self, why: str, frame, u: np.ndarray, *, truncated: bool) -> None:
+        """End the agent's step for a reason that is not one of its dones (the server ended
+        the race; another learner's done ended the episode); with u, its car stops."""
+        self.ended = (why,)
+        self.term[0], self.trunc[0] = not truncated, truncated
+        self.frame = frame
+        if u is not None:
+            k = self.rows[0]
+            u[k, :3] = _STOP
+            u[k, 4] = 0.0
+
+    def result(self) -> tuple[float, dict, bool, bool, tuple[str, ...], int]:
+        """(reward, reward terms by name, terminated, truncated, dones fired, ticks) of the
+        step."""
+        ticks = int(self.ticks[0])
+        terms = dict(zip(self.reward_names, self.terms[:, 0].tolist())) if ticks else {}
+        term, trunc = bool(self.term[0]), bool(self.trunc[0])
+        fired = self.ended
+        if (term or trunc) and not fired:
+            fired = tuple(n for n, f in zip(self.done_names, self.fired[0].tolist()) if f)
+        return float(self.total[0]), terms, term, trunc, fired, ticks
+
+    def reset(self, k: int, row: np.ndarray, track_length: float) -> None:
+        """Start an episode with the agent's car in row k from its first sensor row (79,) on a
+        track of length m."""
+        self.rows[0] = k
         self.rewards.start(0, self.reward_components, track_length)
         self.dones.start(0, self.done_components, track_length)
         self.actions.start(0, row, self.target_speed, self.noise_std)
-        self._length[0] = track_length
-
-    def score(self, prev: np.ndarray, cur: np.ndarray, action: list[float], collision: bool):
-        """(reward, terms by name, terminated, truncated, dones fired) of one tick from the
-        rows (1, 79) before and after it (madsim.agents.component_batch: the envs' one code path)."""
-        hit = _HIT if collision else _NO_HIT
-        actions = [action]
-        total, terms = weighted_sum(self.rewards.evaluate(_SLOT0, prev, cur, self._length, hit,
-                                                          actions), self.weights)
-        terms = dict(zip(self.reward_names, terms[:, 0].tolist()))
-        fired = self.dones.evaluate(_SLOT0, prev, cur, self._length, hit, actions)[:, 0].tolist()
-        if not any(fired):
-            return float(total[0]), terms, False, False, ()
-        names = tuple(n for n, f in zip(self.done_names, fired) if f)
-        term = any(f and not t for f, t in zip(fired, self.truncation))
-        trunc = any(f and t for f, t in zip(fired, self.truncation))
-        return float(total[0]), terms, term, trunc, names
+        self.track_length[0] = track_length
 
 
 @dataclasses.dataclass
@@ -228,6 +289,7 @@ class MadrasCore:
         self.live: list[str] = []
         self._end_together = False   # server.episode_end "any": the first done ends every learner
         self.plan: EpisodePlan | None = None
+        self._compiled: EnvTick | None = None      # the episode's compiled step, if any
         self.fleet = TrafficFleet(0)
         self.stage: _Stage = self._stage(0)
 
@@ -323,7 +385,10 @@ class MadrasCore:
         self.tick = 0
         self._init_wait(cfg.server.init_wait * self.ticks_per_step)
         for name in self.live:
-            stage.agents[name].reset(self.frame.flat[self.agent_rows[name]], track.length)
+            k = self.agent_rows[name]
+            stage.agents[name].reset(k, self.frame.flat[k], track.length)
+        self._no_hits = np.zeros(len(plan.cars), dtype=bool)
+        self._compiled = self._compiled_step()
         if self.hub is not None:
             self.hub.reset()
         shared = {"seed": plan.seed, "episode": plan.episode, "stage": self.stage_index(),
@@ -337,6 +402,23 @@ class MadrasCore:
                                placement=(float(where[k, 0]), float(where[k, 1])))
         obs = {name: self._observe(name, self.frame, self.agent_rows[name]) for name in self.live}
         return obs, infos
+
+    def _compiled_step(self) -> EnvTick | None:
+        """The episode's compiled step (`madsim.envs.env_tick`) where it applies: one learner
+        without communication, a vector observation, a World in this process with contact
+        and fixed 0.02 s ticks. Else None: the step runs stage by stage in Python."""
+        backend = self.backend
+        if len(self.live) != 1 or self.hub is not None or not isinstance(backend, LocalBackend) \
+                or backend.clock is not None or backend.world.tick_args is None:
+            return None
+        name = self.live[0]
+        builder = self.builders[name]
+        if not isinstance(builder, ObservationBuilder):
+            return None
+        tick = EnvTick(backend.world, backend.suite, self.controls, self.stage.agents[name],
+                       builder, self.frame.flat, self.fleet, self._traffic_rows)
+        self.frame = SensorFrame(tick.flat, tick.cars)      # the latest sensors, in place
+        return tick
 
     def view_state(self):
         """What an `EnvView` draws of the current tick (madsim.render.envview.ViewState):
@@ -405,72 +487,92 @@ class MadrasCore:
         agent_rows = self.agent_rows
         if self.hub is not None:
             rows = self.rows
-            self.hub.send({n: rows[agent_rows[n]] for n in self.live}, chosen)
-        for name in self.live:
-            agents[name].begin(chosen[name], self.action_rng)
-        # per agent: [reward, terms, terminated, truncated, fired, frame, ticks]
-        state = {name: [0.0, None, False, False, (), None, 0] for name in self.live}
-        running = [(name, agents[name], agent_rows[name], state[name]) for name in self.live]
+            self.hub.send({n: rows[agent_rows[n]] for n in self.live},
+                          {n: a.tolist() for n, a in chosen.items()})
+        stepping = [agents[name] for name in self.live]
+        for agent in stepping:
+            agent.begin(chosen[agent.name], self.action_rng)
+        if self._compiled is not None:
+            return self._step_compiled(stepping[0])
+        running = stepping
         u = self.controls
         backend = self.backend
         frame = self.frame
-        for _ in range(self.ticks_per_step):
-            for name, agent, k, st in running:
-                agent.fill(u[k], frame.flat[k])
+        for t in range(self.ticks_per_step):
+            flat = frame.flat
+            for agent in running:
+                agent.fill(flat, u)
             if self.behaviours:
                 self._traffic_controls(frame)    # this tick's sensors, not the step's first
             new = backend.step(u)
             self.tick += 1
             if new is None:                          # the server ended the race
-                for name, agent, k, st in running:
-                    st[3], st[4], st[5] = True, ("ServerEnded",), frame
+                for agent in running:
+                    agent.end("ServerEnded", frame, None, truncated=True)
                 running = []
                 break
-            prev_flat, frame = frame.flat, new
+            frame = new
             hits = backend.collisions()
+            if hits is None:
+                hits = self._no_hits
             still = []
-            for entry in running:
-                name, agent, k, st = entry
-                collision = bool(hits[k]) if hits is not None else False
-                r, terms, term, trunc, fired = agent.score(prev_flat[k:k + 1], frame.flat[k:k + 1],
-                                                           chosen[name], collision)
-                st[0] += r
-                if st[1] is None:
-                    st[1] = terms
+            for agent in running:
+                if agent.outcome(frame.flat, hits, u, t == 0):
+                    still.append(agent)
                 else:
-                    acc = st[1]
-                    for key, v in terms.items():
-                        acc[key] += v
-                st[6] += 1
-                if term or trunc:
-                    st[2], st[3], st[4], st[5] = term, trunc, fired, frame
-                    u[k, :3] = _STOP
-                    u[k, 4] = 0.0
-                else:
-                    still.append(entry)
+                    agent.frame = frame
             if self._end_together and len(still) < len(running):
-                for name, agent, k, st in still:     # MADRaS: the first done ends every learner's
-                    st[2], st[4], st[5] = True, ("EpisodeEnd",), frame
-                    u[k, :3] = _STOP
-                    u[k, 4] = 0.0
+                for agent in still:    # MADRaS: the first done ends every learner's episode
+                    agent.end("EpisodeEnd", frame, u, truncated=False)
                 still = []
             running = still
             if not running:
                 break
         self.frame = frame
-        for name, agent, k, st in running:
-            st[5] = frame
+        for agent in running:
+            agent.frame = frame
         obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}
-        for name, (r, terms, term, trunc, fired, fr, ticks) in state.items():
-            obs[name] = self._observe(name, fr, agent_rows[name])
-            rewards[name] = float(r)
+        for agent in stepping:
+            name = agent.name
+            r, terms, term, trunc, fired, ticks = agent.result()
+            obs[name] = self._observe(name, agent.frame, agent_rows[name])
+            rewards[name] = r
             terminated[name] = term
             truncated[name] = trunc
-            infos[name] = {"reward_terms": terms or {}, "dones": fired, "ticks": ticks}
+            infos[name] = {"reward_terms": terms, "dones": fired, "ticks": ticks}
         self.live = [n for n in self.live if not (terminated[n] or truncated[n])]
         if self._unit() == "steps":
             self.progress += 1
         return obs, rewards, terminated, truncated, infos
+
+    def _step_compiled(self, agent: _StageAgent):
+        """`step`'s ticks as `EnvTick` calls (one, unless a stage is left to Python: traffic
+        controls, the contact narrow phase, sensor noise, Python rewards or dones)."""
+        tick = self._compiled
+        stage, k = CONTROLS, 0
+        while True:
+            stage = tick.run(stage, k, self.ticks_per_step)
+            if stage == DONE:
+                break
+            k = int(tick.status[0])
+            if stage == TRAFFIC:
+                self._traffic_controls(self.frame)
+            elif stage == STEP:
+                tick.finish_step()
+            elif stage == SENSE:
+                self.backend.suite.finish_frame(tick.flat, tick.cars, tick.due)
+            else:                                   # OUTCOME
+                tick.status[1] = agent.outcome(tick.flat, tick.hits, self.controls, k == 0)
+            stage += 1
+        self.tick += int(tick.status[0]) + 1
+        name = agent.name
+        r, terms, term, trunc, fired, ticks = agent.result()
+        if term or trunc:
+            self.live = []
+        if self._unit() == "steps":
+            self.progress += 1
+        return ({name: tick.obs[0].copy()}, {name: r}, {name: term}, {name: trunc},
+                {name: {"reward_terms": terms, "dones": fired, "ticks": ticks}})
 
     def close(self) -> None:
         self.backend.close()

@@ -19,7 +19,7 @@ Slot e of the batch holds episode e; its rows follow the env: traffic first, the
 Speed (benchmarks/bench_vector.py, per CPU-second of one core of this project's 2-core
 machine): ~250,000 env-steps/s at N = 1024, ~55,000 with four traffic cars per episode, most of
 it the cars' own physics sub-steps; for a single episode `MadrasEnv` is faster (the numpy
-bookkeeping costs ~150 us per step whatever N). threads=True shares the compiled part
+bookkeeping costs ~150 us per step whatever N; MadrasEnv's step is one compiled call). threads=True shares the compiled part
 among numba's threads; on a machine shared with other work set OMP_WAIT_POLICY=passive.
 Not supported: scenarios with more than one learning agent or with communication (ConfigError);
 rendering.
@@ -36,9 +36,9 @@ from gymnasium.vector.utils import batch_space
 
 from madsim.agents import dones as D
 from madsim.agents import rewards as R
-from madsim.agents.component_batch import ActionMap, ComponentBatch, speed_gear_many, weighted_sum
+from madsim.agents.component_batch import ActionMap, ComponentBatch, speed_gear_many
 from madsim.agents.curriculum import apply_stage, stage_index
-from madsim.agents.learner_kernel import tick_controls, tick_outcome
+from madsim.agents.learner_kernel import LearnerScratch, tally, tick_controls, tick_outcome
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
 from madsim.agents.traffic_fleet import TrafficFleet
@@ -48,7 +48,7 @@ from madsim.envs.core import default_traffic_factory, episode_seed
 from madsim.envs.episode import AssetCache, draw_plan, placements
 from madsim.physics.world_batch import WorldBatch
 from madsim.physics.schedule import TorcsClock
-from madsim.physics.sensors import N_VALUES, O_SX
+from madsim.physics.sensors import O_SX
 
 __all__ = ["MadrasVectorEnv", "make_vec"]
 
@@ -96,18 +96,6 @@ class _Stage:
         self.dones = D.DoneSet.from_names(agent.dones, max_steps=s.max_steps, laps=s.laps,
                                           track_limits=s.track_limits,
                                           target_speed=agent.target_speed)
-
-
-class _Scratch:
-    """Per-tick scratch of `MadrasVectorEnv._ticks_compiled` for up to n episodes: the
-    learners' sensor rows before and after the tick, their track lengths and contact flags,
-    the k rewards' and kd dones' values, the controls."""
-
-    def __init__(self, n: int, k: int, kd: int):
-        self.prev, self.cur = np.zeros((n, N_VALUES)), np.zeros((n, N_VALUES))
-        self.length, self.collision = np.zeros(n), np.zeros(n, dtype=bool)
-        self.r_vals, self.d_vals = np.zeros((k, n)), np.zeros((kd, n))
-        self.controls = np.zeros((n, 4))
 
 
 class MadrasVectorEnv(VectorEnv):
@@ -232,7 +220,7 @@ class MadrasVectorEnv(VectorEnv):
         self._live = np.zeros(n, dtype=bool)
         self._started = False
         self._obs = np.zeros((n, self.builder.size), dtype=np.float32)
-        self._scratch = _Scratch(n, len(self._reward_names), len(self._done_names))
+        self._scratch = LearnerScratch(n, len(self._reward_names), len(self._done_names))
         self._dones_template = np.empty(n, dtype=object)
         for e in range(n):
             self._dones_template[e] = ()
@@ -402,13 +390,11 @@ class MadrasVectorEnv(VectorEnv):
         truncated = np.zeros(n, dtype=bool)
         infos: dict = {}
         if slots.size:
-            chosen = a[slots]
-            bad = ~np.isfinite(chosen)
-            if bad.any():
-                i, j = np.argwhere(bad)[0]
+            chosen, bad = self._actions.check(a[slots])
+            if bad >= 0:
+                i, j = divmod(bad, self._dim)
                 raise ValueError(f"action for episode {slots[i]} has a non-finite value at "
-                                 f"index {j}: {chosen[i, j]}")
-            chosen = self._actions.clip(chosen)
+                                 f"index {j}: {a[slots[i], j]}")
             infos = self._step_slots(slots, chosen, rewards, terminated, truncated)
         if resetting.any() and self.autoreset_mode == AutoresetMode.NEXT_STEP:
             infos = self._merge(infos, self._reset_slots(np.flatnonzero(resetting),
@@ -505,12 +491,13 @@ class MadrasVectorEnv(VectorEnv):
     def _ticks_numpy(self, slots, running, checked, mask, traffic, total, ticks, term, trunc,
                      fired) -> np.ndarray:
         """`_ticks_compiled` where a reward or done is plain Python: it gets each episode's
-        rows and checked action (numpy over the episodes around the compiled built-ins)."""
+        rows and checked action (ComponentBatch.evaluate, numpy over the episodes around the
+        compiled built-ins; the bookkeeping is `tick_outcome`'s own, `tally`)."""
         batch = self.batch
         u, flat, hits = batch.controls, batch.sensors, batch.hits
         m = slots.shape[0]
-        terms = None
-        for _ in range(self.ticks_per_step):
+        terms = np.zeros((len(self._reward_names), m))
+        for k in range(self.ticks_per_step):
             run = slots[running]
             rows = self._row[run]
             prev = flat[rows]
@@ -524,27 +511,14 @@ class MadrasVectorEnv(VectorEnv):
             length = self._length[run]
             collision = hits[rows]
             actions = [checked[i] for i in running.tolist()]
-            r, values = weighted_sum(self._rewards.evaluate(run, prev, cur, length, collision,
-                                                            actions), self._weights)
-            total[running] += r
-            if terms is None:
-                terms = values
-            else:
-                terms[:, running] += values
-            ticks[running] += 1
-            d_fired = self._dones.evaluate(run, prev, cur, length, collision, actions).T != 0.0
-            d_term = (d_fired & ~self._is_trunc).any(axis=1)
-            d_trunc = (d_fired & self._is_trunc).any(axis=1)
-            done = d_term | d_trunc
-            if done.any():
-                which = running[done]
-                term[which], trunc[which], fired[which] = d_term[done], d_trunc[done], d_fired[done]
-                u[rows[done], :3] = _STOP
-                u[rows[done], 4] = 0.0
-                running = running[~done]
-                if running.size == 0:
-                    break
-        return np.zeros((len(self._reward_names), m)) if terms is None else terms
+            r_vals = self._rewards.evaluate(run, prev, cur, length, collision, actions)
+            d_vals = self._dones.evaluate(run, prev, cur, length, collision, actions)
+            left = tally(self._weights, self._is_trunc, running, rows, r_vals, d_vals, k == 0,
+                         total, terms, ticks, term, trunc, fired, u)
+            running = running[:left]
+            if left == 0:
+                break
+        return terms
 
     def _slot_infos(self, infos: dict, slots) -> list[dict]:
         """The MadrasEnv step infos of some episodes, taken out of the vector infos."""

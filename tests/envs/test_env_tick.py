@@ -1,0 +1,131 @@
+"""MadrasEnv's compiled step (madsim.envs.env_tick) against the same env stepped stage by stage
+in Python: the same observations, rewards, flags and infos, bit for bit, through the stages the
+compiled call leaves to Python (traffic controls, contact near a car, sensor noise, a reward
+written in Python) and through resets."""
+
+import numpy as np
+import pytest
+
+import madsim.agents.rewards as rewards_module
+from madsim.envs import env_tick
+from madsim.envs.core import MadrasCore
+from madsim.envs.madras_env import MadrasEnv
+from tests.envs.test_vector import same
+
+
+def episode_log(cfg, steps, actions, *, compiled, seed=5):
+    """Everything `steps` env steps return (resets included), and the Python stages counted."""
+    env = MadrasEnv(cfg)
+    stages = {}
+    if compiled:
+        run = env_tick.EnvTick.run
+
+        def counting(self, first, tick0, ticks):
+            stage = run(self, first, tick0, ticks)
+            stages[stage] = stages.get(stage, 0) + 1
+            return stage
+        env_tick.EnvTick.run = counting
+    else:
+        original = MadrasCore._compiled_step
+        MadrasCore._compiled_step = lambda self: None
+    try:
+        rng = np.random.default_rng(seed)
+        log = [env.reset(seed=seed)]
+        assert (env.core._compiled is not None) == compiled
+        for _ in range(steps):
+            out = env.step(actions(rng))
+            log.append(out)
+            if out[2] or out[3]:
+                log.append(env.reset())
+    finally:
+        if compiled:
+            env_tick.EnvTick.run = run
+        else:
+            MadrasCore._compiled_step = original
+    return log, stages
+
+
+def compare(cfg, steps, actions):
+    ref, _ = episode_log(cfg, steps, actions, compiled=False)
+    got, stages = episode_log(cfg, steps, actions, compiled=True)
+    assert len(ref) == len(got)
+    for i, (a, b) in enumerate(zip(ref, got)):
+        same(list(a), list(b), f"[{i}]")
+    return ref, stages
+
+
+def sab(rng):
+    return np.array([rng.uniform(-0.3, 0.3), rng.uniform(0.3, 1.0), -1.0], dtype=np.float32)
+
+
+def test_among_traffic_with_contact_the_compiled_step_is_the_python_one():
+    cfg = {"server": {"tracks": ["madsim-street"], "max_steps": 400},
+           "agents": [{"observation": {"mode": "SingleAgentInTrafficObs"},
+                       "rewards": {"Progress": 1.0, "Collision": 3.0, "SuccessfulOvertake": 1.0},
+                       "dones": ["TimeOut", "OutOfTrack", "TurnBackward"]}],
+           "traffic": [{"behaviour": "ConstVel", "target_speed": 4.0, "lane": 0.0,
+                        "initial_distance": [12.0, 12.0]},
+                       {"behaviour": "Parked", "initial_distance": [30.0, 40.0]}]}
+    def straight(rng):      # the learner catches up with the ConstVel car within ~5 s
+        return np.array([rng.uniform(-0.02, 0.02), rng.uniform(0.3, 1.0), -1.0], dtype=np.float32)
+
+    log, stages = compare(cfg, 300, straight)
+    assert stages.get(env_tick.TRAFFIC, 0) == 0        # built-ins that draw nothing: compiled
+    assert stages.get(env_tick.STEP, 0) > 0            # contact near: the narrow phase
+    assert any(step[4]["reward_terms"]["Collision"] != 0.0 for step in log if len(step) == 5)
+
+
+def test_traffic_that_draws_as_it_drives_is_driven_from_python_in_the_same_order():
+    cfg = {"server": {"tracks": ["madsim-road"], "max_steps": 150},
+           "agents": [{"observation": {"mode": "SingleAgentInTrafficObs"}}],
+           "traffic": [{"behaviour": "RandomLaneSwitch", "target_speed": 9.0},
+                       {"behaviour": "SinusoidalSpeed"}, {"behaviour": "ConstVel"}]}
+    log, stages = compare(cfg, 160, sab)
+    assert stages.get(env_tick.TRAFFIC, 0) >= 160      # the fleet's act, every tick
+
+
+def test_track_speed_actions_with_noise_and_manual_gear():
+    cfg = {"server": {"tracks": ["madsim-oval"], "max_steps": 60, "observation_noise": True},
+           "agents": [{"action": {"space": "TS"}, "gear": "manual", "pid": {"latency": 3},
+                       "action_noise_std": 0.05,
+                       "observation": {"mode": "TorcsObs", "normalised": True}}]}
+
+    def ts(rng):
+        return rng.uniform(-1.0, 1.0, 3).astype(np.float32)
+
+    log, stages = compare(cfg, 70, ts)
+    assert stages.get(env_tick.SENSE, 0) >= 3 * 70      # every tick's noise
+    assert sum(1 for step in log if len(step) == 5 and (step[2] or step[3])) >= 1
+
+
+def test_a_reward_written_in_python_is_called_by_the_compiled_step():
+    @rewards_module.register_reward("TestEnvTickThrottle")
+    class Throttle(rewards_module.RewardComponent):
+        def reset(self):
+            self.calls = 0
+
+        def __call__(self, prev, cur, action, info):
+            self.calls += 1
+            return action[1] + (cur["distRaced"] - prev["distRaced"]) / self.calls
+
+    try:
+        cfg = {"server": {"max_steps": 30},
+               "agents": [{"rewards": {"TestEnvTickThrottle": 2.0, "Progress2": 1.0}}]}
+        log, stages = compare(cfg, 40, sab)
+        assert stages.get(env_tick.OUTCOME, 0) >= 40
+        assert all(step[4]["reward_terms"]["TestEnvTickThrottle"] > 0.0
+                   for step in log if len(step) == 5)
+    finally:
+        rewards_module.REWARDS.pop("TestEnvTickThrottle")
+
+
+@pytest.mark.parametrize("cfg", [
+    {"server": {"tick_schedule": "torcs"}, "agents": [{}]},
+    {"agents": [{"observation": {"mode": "Image", "image_size": 16}}]},
+])
+def test_where_it_does_not_apply_the_env_steps_in_python(cfg):
+    env = MadrasEnv(cfg)
+    env.reset(seed=0)
+    assert env.core._compiled is None
+    obs, *_ = env.step(env.action_space.sample())
+    assert obs.shape == env.observation_space.shape
