@@ -14,8 +14,9 @@ typing and lowering registry it has (imports of most of numba, a BLAS probe that
 `scipy.linalg`: about 0.5 s on a 2-core AMD EPYC), none of which running compiled code needs.
 `light_cache_loads` makes a load of a madsim kernel set up only what the code it loads calls
 into (numba's runtime and the hash secrets); the first compile in the process still loads all
-registries, as before. `defer_blas_probe` makes that full load look for scipy's BLAS module
-instead of importing `scipy.linalg` (madsim's kernels use no BLAS). And a locator checks that
+registries, as before. `defer_blas_probe` makes numba's BLAS probe (when `numba.np.arraymath`
+is imported) look for scipy's BLAS module instead of importing `scipy.linalg` (madsim's kernels
+use no BLAS). And a locator checks that
 its cache folder is writable once per folder and process, not once per kernel.
 """
 
@@ -120,10 +121,10 @@ def light_cache_loads() -> None:
         from numba.core import caching
         from numba.core.runtime import rtsys
         load = caching.Cache.load_overload
-        caching.Cache._load_overload, caching.Cache._guard_against_spurious_io_errors
     except (ImportError, AttributeError):
         return
-    if getattr(load, "madsim_light", False):
+    if getattr(load, "madsim_light", False) or not all(
+            hasattr(caching.Cache, n) for n in ("_load_overload", "_guard_against_spurious_io_errors")):
         return
 
     def load_overload(self, sig, target_context):
@@ -151,40 +152,59 @@ def scipy_blas_present() -> bool:
     return PathFinder.find_spec("cython_blas", [linalg]) is not None
 
 
+def _probe_blas() -> None:
+    """numba's `ensure_blas` as `numba.np.arraymath` calls it at import, to set `_HAVE_BLAS`."""
+    if not scipy_blas_present():
+        raise ImportError("scipy.linalg.cython_blas not found")
+
+
+class _BlasProbeLoader:
+    """The loader of `numba.np.arraymath`, run with `_probe_blas` in place of `ensure_blas`."""
+
+    def __init__(self, loader):
+        self._loader = loader
+
+    def __getattr__(self, name):          # get_code, get_source, ... as the real loader's
+        return getattr(self._loader, name)
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module):
+        from numba.np import linalg
+
+        ensure_blas = linalg.ensure_blas
+        linalg.ensure_blas = _probe_blas
+        try:
+            self._loader.exec_module(module)
+        finally:
+            linalg.ensure_blas = ensure_blas
+            if getattr(module, "ensure_blas", None) is _probe_blas:
+                module.ensure_blas = ensure_blas
+
+
+class _ArraymathFinder:
+    """Finds `numba.np.arraymath`, once, for `_BlasProbeLoader` (an import-system finder)."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "numba.np.arraymath":
+            return None
+        if self in sys.meta_path:
+            sys.meta_path.remove(self)
+        spec = PathFinder.find_spec(name, path, target)
+        if spec is not None and hasattr(spec.loader, "exec_module"):
+            spec.loader = _BlasProbeLoader(spec.loader)
+        return spec
+
+
 def defer_blas_probe() -> None:
     """Make numba's import-time BLAS probe (`numba.np.arraymath._HAVE_BLAS`, which decides
     whether `np.convolve`-like functions may call BLAS) look for scipy's BLAS module instead of
     importing `scipy.linalg`; every use of BLAS still goes through numba's own `ensure_blas`,
-    which imports and checks scipy then. Once per process, when numba loads or compiles its
-    first function; a no-op if numba's internals are not what this was written for."""
-    try:
-        from numba.core import cpu
-        load = cpu.CPUContext.load_additional_registries
-    except (ImportError, AttributeError):
+    which imports and checks scipy then. `numba.np.arraymath` is imported by numba's registry
+    load (the first compile) or by a cached kernel whose code came from it; a no-op once it is
+    imported."""
+    if "numba.np.arraymath" in sys.modules:
         return
-    if getattr(load, "madsim_blas_probe", False) or "numba.np.arraymath" in sys.modules:
-        return
-
-    def load_first(self):
-        cpu.CPUContext.load_additional_registries = load   # this wrapper runs once
-        try:
-            from numba.np import linalg
-            ensure_blas = linalg.ensure_blas
-        except (ImportError, AttributeError):
-            return load(self)
-
-        def probe():
-            if not scipy_blas_present():
-                raise ImportError("scipy.linalg.cython_blas not found")
-
-        linalg.ensure_blas = probe
-        try:
-            return load(self)                 # imports numba.np.arraymath, which probes
-        finally:
-            linalg.ensure_blas = ensure_blas
-            arraymath = sys.modules.get("numba.np.arraymath")
-            if getattr(arraymath, "ensure_blas", None) is probe:
-                arraymath.ensure_blas = ensure_blas
-
-    load_first.madsim_blas_probe = True
-    cpu.CPUContext.load_additional_registries = load_first
+    if not any(isinstance(f, _ArraymathFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _ArraymathFinder())
