@@ -16,8 +16,8 @@ typing and lowering registry it has (imports of most of numba, a BLAS probe that
 into (numba's runtime and the hash secrets); the first compile in the process still loads all
 registries, as before. `defer_blas_probe` makes numba's BLAS probe (when `numba.np.arraymath`
 is imported) look for scipy's BLAS module instead of importing `scipy.linalg` (madsim's kernels
-use no BLAS). And a locator checks that
-its cache folder is writable once per folder and process, not once per kernel.
+use no BLAS). And a locator checks that its cache folder is writable once per folder and
+process, not once per kernel.
 """
 
 from __future__ import annotations
