@@ -26,7 +26,7 @@ from collections import OrderedDict
 import numpy as np
 
 from madsim.envs.config import ConfigError, ScenarioConfig
-from madsim.net.protocol import SNAKEOIL_ANGLES_DEG
+from madsim.facts import SNAKEOIL_ANGLES_DEG
 from madsim.physics.schedule import make_clock
 from madsim.physics.sensors import (
     N_VALUES,
