@@ -21,12 +21,11 @@ import numpy as np
 from madsim.facts import SUBSTEPS_PER_TICK as SUBSTEPS
 from madsim.agents.learner_kernel import observe_rows, tick_controls, tick_outcome
 from madsim.agents.traffic_kernel import traffic_tick
-from madsim.net.array_table import (address_table, b1_matrix, b1_vector, f4_matrix, f8_matrix,
-                                    f8_tensor, f8_vector, i1_vector, i8_matrix, i8_vector,
-                                    readonly)
-from madsim.physics.layout import S_TIME
-from madsim.physics.sensors import O_TPOS, focus_due, focus_kernel, sensor_kernel
-from madsim.physics.world_tick import step_world
+from madsim.array_table import (address_table, b1_matrix, b1_vector, f4_matrix, f8_matrix,
+                                f8_tensor, f8_vector, i8_vector)
+from madsim.physics.sensors import SENSOR_TABLE, SN_FLAT, sense_table, sensor_table_arrays
+from madsim.physics.world_tick import (W_CAR, W_NEAR, W_RACE_POS, W_WALL, WORLD_TABLE, step_table,
+                                       world_table_arrays)
 
 CONTROLS, TRAFFIC, STEP, SENSE, OUTCOME, NEXT, DONE = range(7)
 """A tick's stages in order (NEXT: after the outcome, on to the next tick); `env_tick` returns
@@ -35,25 +34,13 @@ NO_TRAFFIC, COMPILED_TRAFFIC, PYTHON_TRAFFIC = range(3)
 """`env_tick`'s `traffic`: none; built-in behaviours that draw nothing and report nothing
 (`traffic_kernel.traffic_tick` in the call); others (the fleet's `act` in Python)."""
 
-# The arrays `env_tick` reads, in the order of its address table: name, dtype, dimensions,
-# memory order. World rows follow World.tick_args, sensor rows SensorSuite.kernel_args, the
-# learner's rows its action map, component batches and step arrays (madsim.envs.core).
-TABLE = (
-    ("controls", "f8", 2, "C"), ("u_tick", "f8", 2, "C"), ("steps", "i8", 1, "C"),
-    ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
-    ("piece_table", "f8", 2, "C"), ("surfaces", "f8", 2, "C"), ("track_scalars", "f8", 1, "C"),
-    ("info", "i8", 1, "C"), ("x", "f8", 1, "C"), ("y", "f8", 1, "C"), ("yaw", "f8", 1, "C"),
-    ("piece", "i8", 1, "C"),
-    ("bp_geo", "f8", 2, "C"), ("bp_bar", "f8", 2, "C"), ("bp_cars", "f8", 2, "C"), ("bp_prm", "f8", 1, "C"),
-    ("bp_wall_cache", "f8", 2, "C"), ("bp_vref", "f8", 2, "C"), ("bp_pairs", "i8", 2, "C"),
-    ("bp_meta", "i8", 1, "C"), ("bp_flags", "i1", 1, "C"), ("bp_slack", "f8", 1, "C"),
-    ("near", "i8", 1, "C"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
-    ("contact_wall", "b1", 1, "C"), ("contact_car", "b1", 1, "C"), ("race_pos", "i8", 1, "C"),
-    ("cars", "i8", 1, "C"), ("track_geo", "f8", 2, "C"), ("track_runs", "f8", 2, "C"),
-    ("piece_run", "i8", 1, "C"), ("angles", "f8", 2, "C"), ("dist_origin", "f8", 1, "C"),
-    ("active", "b1", 1, "C"), ("focus_requested", "f8", 1, "C"), ("focus_next", "f8", 1, "C"),
-    ("focus_earliest", "f8", 1, "C"), ("due", "b1", 1, "C"), ("flat", "f8", 2, "C"),
-    ("time_s", "f8", 1, "C"), ("on_track", "b1", 1, "C"), ("hits", "b1", 1, "C"),
+# The arrays `env_tick` reads, in the order of its address table (`madsim.array_table`): name,
+# dtype, dimensions, memory order. From row W0 the World's (`world_tick.WORLD_TABLE`), from row S0
+# the sensors' (`sensors.SENSOR_TABLE`); then the learner's: its action map, component batches
+# and step arrays (madsim.envs.core), its observation's, the traffic fleet's.
+_OWN_FIRST = (("controls", "f8", 2, "C"), ("u_tick", "f8", 2, "C"), ("steps", "i8", 1, "C"),
+              ("hits", "b1", 1, "C"), ("status", "i8", 1, "C"))
+_LEARNER = (
     ("slot0", "i8", 1, "C"), ("rows", "i8", 1, "C"), ("sab", "f8", 2, "C"), ("gear", "f8", 1, "C"),
     ("pid_state", "f8", 2, "C"), ("pid_params", "f8", 1, "C"), ("pid_fresh", "b1", 1, "C"),
     ("lane_des", "f8", 1, "C"), ("speed_des_kmh", "f8", 1, "C"), ("prev", "f8", 2, "C"),
@@ -67,18 +54,21 @@ TABLE = (
     ("term", "b1", 1, "C"), ("trunc", "b1", 1, "C"), ("fired", "b1", 2, "C"),
     ("wire_index", "i8", 1, "C"), ("scale", "f8", 1, "C"), ("low", "f8", 1, "C"),
     ("high", "f8", 1, "C"), ("gain", "f8", 1, "C"), ("offset", "f8", 1, "C"),
-    ("obs", "f4", 2, "C"), ("status", "i8", 1, "C"),
+    ("obs", "f4", 2, "C"),
     ("traffic_rows", "i8", 1, "C"), ("traffic_kind", "i8", 1, "C"), ("traffic_s", "f8", 2, "C"),
     ("traffic_p", "f8", 2, "C"), ("traffic_lanes", "f8", 2, "C"), ("traffic_rand", "f8", 2, "C"),
 )
-(U, U_TICK, STEPS, CP, CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR,
- BP_CARS, BP_PRM, BP_WALL, BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL,
- CAR, RACE_POS, CARS, GEO, RUNS, PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT_ALLOWED,
- EARLIEST, DUE, FLAT, TIME_S, ON_TRACK, HITS, SLOT0, ROWS, SAB, GEAR, PID_STATE, PID_PARAMS,
- PID_FRESH, LANE_DES, SPEED_DES, PREV, OUT4, R_CODES, R_PAR, R_STATE, D_CODES, D_PAR, D_STATE,
- WEIGHTS, IS_TRUNC, RUNNING, TRACK_LENGTH, CUR, LENGTH, COLLISION, R_VALS, D_VALS, TOTAL, TERMS,
- TICKS, TERM, TRUNC, FIRED, WIRE_INDEX, SCALE, LOW, HIGH, GAIN, OFFSET, OBS, STATUS,
- T_ROWS, T_KIND, T_S, T_P, T_LANES, T_RAND) = (np.int64(k) for k in range(len(TABLE)))
+TABLE = _OWN_FIRST + WORLD_TABLE + SENSOR_TABLE + _LEARNER
+U, U_TICK, STEPS, HITS, STATUS = (np.int64(k) for k in range(len(_OWN_FIRST)))
+W0 = np.int64(len(_OWN_FIRST))
+S0 = np.int64(W0 + len(WORLD_TABLE))
+(SLOT0, ROWS, SAB, GEAR, PID_STATE, PID_PARAMS, PID_FRESH, LANE_DES, SPEED_DES, PREV, OUT4, R_CODES,
+ R_PAR, R_STATE, D_CODES, D_PAR, D_STATE, WEIGHTS, IS_TRUNC, RUNNING, TRACK_LENGTH, CUR, LENGTH,
+ COLLISION, R_VALS, D_VALS, TOTAL, TERMS, TICKS, TERM, TRUNC, FIRED, WIRE_INDEX, SCALE, LOW, HIGH,
+ GAIN, OFFSET, OBS, T_ROWS, T_KIND, T_S, T_P, T_LANES, T_RAND) = (
+    np.int64(S0 + len(SENSOR_TABLE) + k) for k in range(len(_LEARNER)))
+FLAT, RACE_POS, NEAR = S0 + SN_FLAT, W0 + W_RACE_POS, W0 + W_NEAR
+WALL, CAR = W0 + W_WALL, W0 + W_CAR
 # int64 row numbers, not int literals: see array_table's views
 
 
@@ -92,10 +82,12 @@ def env_tick(first, tick0, ticks, traffic, python, plain, ts, manual, normalise,
 
     CONTROLS: the learner's controls from its sensor row before the tick (`tick_controls`).
     TRAFFIC: the traffic cars' controls, compiled (`traffic_tick`) or Python's (`traffic`).
-    STEP: `world_tick.step_world` on u_tick, the tick's copy of the controls; steps[0] = its
-      answer. Stops on a non-finite control or something near (after sub-step steps[0]).
-    SENSE: `sensor_kernel` into flat (N, 79), the focus cooldowns and readings due; stops when
-      not `plain` (noise to apply; due (N,) says which cars get a focus reading).
+    STEP: `world_tick.step_table` (`step_world` on u_tick, the tick's copy of the controls);
+      steps[0] = its answer. Stops on a non-finite control or something near (after sub-step
+      steps[0]).
+    SENSE: `sensors.sense_table` (`sensor_kernel` into flat (N, 79), the focus cooldowns and
+      readings due); stops when not `plain` (noise to apply; due (N,) says which cars get a
+      focus reading).
     OUTCOME: the contact flags hits = wall | car, then `tick_outcome` (its answer, the learners
       still running, in status[1]); stops first when a reward or done is `python`.
     NEXT: status[1] == 0 ends the step; else on to the next tick.
@@ -122,47 +114,13 @@ def env_tick(first, tick0, ticks, traffic, python, plain, ts, manual, normalise,
             elif traffic == PYTHON_TRAFFIC:
                 return TRAFFIC
         if stage <= STEP:
-            near, steps = i8_vector(t, NEAR), i8_vector(t, STEPS)
-            bp = (readonly(f8_matrix(t, BP_GEO)), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS),
-                  f8_vector(t, BP_PRM), f8_matrix(t, BP_WALL), f8_matrix(t, BP_VREF),
-                  i8_matrix(t, BP_PAIRS), i8_vector(t, BP_META), i1_vector(t, BP_FLAGS),
-                  f8_vector(t, BP_SLACK))
-            # the tick's own copy of the controls: a shift's throttle cap writes into it
-            u_tick = f8_matrix(t, U_TICK)
-            for i in range(n):
-                for j in range(u.shape[1]):
-                    u_tick[i, j] = u[i, j]
-            steps[0] = step_world(u_tick, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W),
-                                  f8_matrix(t, CURVE_T), f8_matrix(t, PT), f8_matrix(t, SURF),
-                                  f8_vector(t, TSC), dt, fuel_on, length, i8_vector(t, INFO),
-                                  f8_vector(t, X), f8_vector(t, Y), f8_vector(t, YAW),
-                                  i8_vector(t, PIECE), bp, near, snap, f8_vector(t, PATH),
-                                  f8_vector(t, TURN), b1_vector(t, WALL), b1_vector(t, CAR),
-                                  race_pos)
-            if steps[0] < 0 or near[0] != 0:
+            steps = i8_vector(t, STEPS)
+            steps[0] = step_table(u, f8_matrix(t, U_TICK), nsub, st, snap, t, W0, dt, fuel_on, length)
+            if steps[0] < 0 or i8_vector(t, NEAR)[0] != 0:
                 return STEP
         if stage <= SENSE:
-            cars, due = i8_vector(t, CARS), b1_vector(t, DUE)
-            requested, next_allowed = f8_vector(t, REQUESTED), f8_vector(t, NEXT_ALLOWED)
-            earliest = f8_vector(t, EARLIEST)
-            geo, runs = readonly(f8_matrix(t, GEO)), readonly(f8_matrix(t, RUNS))
-            piece_run = readonly(i8_vector(t, PIECE_RUN))
-            sensor_kernel(cars, st, geo, runs, piece_run, half_width, f8_matrix(t, ANGLES),
-                          race_pos, f8_vector(t, ORIGIN), b1_vector(t, ACTIVE), max_range, flat)
-            count = 0
-            if st[0, S_TIME] >= earliest[0]:        # one clock for all cars
-                time_s, on_track = f8_vector(t, TIME_S), b1_vector(t, ON_TRACK)
-                for c in range(cars.shape[0]):
-                    time_s[c] = st[cars[c], S_TIME]
-                    on_track[c] = abs(flat[c, O_TPOS]) <= 1.0
-                count = focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due)
-            if not plain:                           # noise: Python finishes the frame
-                if count == 0:
-                    due[:] = False
-                return SENSE
-            if count > 0:
-                focus_kernel(cars, st, due, requested, geo, length, runs, piece_run, half_width,
-                             max_range, flat)
+            if not sense_table(st, t, S0, race_pos, length, half_width, max_range, plain):
+                return SENSE                        # noise: Python finishes the frame
         if stage <= OUTCOME:
             hits, wall, car = b1_vector(t, HITS), b1_vector(t, WALL), b1_vector(t, CAR)
             for i in range(n):
@@ -231,21 +189,19 @@ class EnvTick:
         if w is self._world_args:
             return
         self._world_args = w
-        geo, runs, piece_run, half, angles, race_pos, origin, active, max_range, *focus = \
-            self.suite.kernel_args()
+        _, _, _, half, _, _, _, _, max_range, *_ = self.suite.kernel_args()
         ag = self.agent
         ctl, sc = ag.actions.controller, ag.scratch
-        rw, dn = ag.rewards, ag.dones
-        arrays = (self.u, self.u_tick, self.steps, *w[1:7], *w[10:15], *w[15], w[16], *w[18:],
-                  self.cars, geo, runs, piece_run, angles, origin, active, *focus, self.due,
-                  self.flat, *self._scratch, self.hits, self._slot0, ag.rows, ag.actions.sab,
-                  ag.actions.gear, ctl.state, ctl.params, ctl.fresh, ctl.lane_des,
-                  ctl.speed_des_kmh, sc.prev, sc.controls, rw.codes, rw.par, rw.state, dn.codes,
-                  dn.par, dn.state, ag.weights, ag.is_trunc, ag.running, ag.track_length, sc.cur,
-                  sc.length, sc.collision, sc.r_vals, sc.d_vals, ag.total, ag.terms, ag.ticks,
-                  ag.term, ag.trunc, ag.fired, *self.builder.kernel_args(), self.obs, self.status,
-                  self.traffic_rows, self.fleet.kind, self.fleet.S, self.fleet.P, self.fleet.lanes,
-                  self.fleet.rand)
+        rw, dn, fleet = ag.rewards, ag.dones, self.fleet
+        arrays = (self.u, self.u_tick, self.steps, self.hits, self.status, *world_table_arrays(w),
+                  *sensor_table_arrays(self.suite, self.cars, self.due, self.flat, self._scratch),
+                  self._slot0, ag.rows, ag.actions.sab, ag.actions.gear, ctl.state, ctl.params,
+                  ctl.fresh, ctl.lane_des, ctl.speed_des_kmh, sc.prev, sc.controls, rw.codes,
+                  rw.par, rw.state, dn.codes, dn.par, dn.state, ag.weights, ag.is_trunc,
+                  ag.running, ag.track_length, sc.cur, sc.length, sc.collision, sc.r_vals,
+                  sc.d_vals, ag.total, ag.terms, ag.ticks, ag.term, ag.trunc, ag.fired,
+                  *self.builder.kernel_args(), self.obs, self.traffic_rows, fleet.kind, fleet.S,
+                  fleet.P, fleet.lanes, fleet.rand)
         self._arrays = arrays             # alive as long as the table is used
         self.args = (w[0], w[17], address_table(arrays, TABLE), w[7], w[8], w[9], half, max_range)
 

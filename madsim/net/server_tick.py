@@ -18,14 +18,15 @@ import numpy as np
 
 from madsim.facts import TICK_S
 from madsim.net import protocol as P
-from madsim.net.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i1_vector,
-                                    i8_matrix, i8_vector, readonly, u1_matrix, u1_vector)
+from madsim.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i8_vector,
+                                readonly, u1_matrix, u1_vector)
 from madsim.net.codec_kernels import decode_stock, encode_rows
-from madsim.physics.layout import S_DAMAGE, S_LAPS, S_TIME
-from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR, O_TPOS,
-                                    SENSOR_OFFSETS, focus_due, focus_kernel, focus_request,
-                                    sensor_kernel)
-from madsim.physics.world_tick import step_world
+from madsim.physics.layout import S_DAMAGE, S_LAPS
+from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR,
+                                    SENSOR_OFFSETS, SENSOR_TABLE, SN_CARS, SN_DUE, SN_EARLIEST,
+                                    SN_FLAT, SN_NEXT, SN_REQUESTED, focus_request, sense_table,
+                                    sensor_table_arrays)
+from madsim.physics.world_tick import W_NEAR, W_RACE_POS, WORLD_TABLE, step_table, world_table_arrays
 
 DECODE, STEP, SENSE, ENCODE, DONE = 0, 1, 2, 3, 4
 """The stages in order; `server_tick` returns the one Python must do, or DONE."""
@@ -33,37 +34,30 @@ EVENT = 8
 """Or-ed into DONE: a car's lap count changed, a car is over the damage limit, or a client
 asked for a restart (meta 1): the loop's bookkeeping has work."""
 
-# The arrays `server_tick` reads, in the order of its address table (`array_table`): name,
-# dtype, dimensions, memory order. World rows follow World.tick_args (contact arrays: the
-# ContactSolver's broad-phase arguments), sensor rows SensorSuite.kernel_args.
-TABLE = (
+# The arrays `server_tick` reads, in the order of its address table (`madsim.array_table`):
+# name, dtype, dimensions, memory order. From row W0 the World's (`world_tick.WORLD_TABLE`), from
+# row S0 the sensors' (`sensors.SENSOR_TABLE`).
+_OWN_FIRST = (
     ("inbox", "u1", 2, "C"), ("inlen", "i8", 1, "C"), ("meta", "i8", 1, "C"),
     ("cpp_text", "u1", 1, "C"), ("cpp_ends", "i8", 1, "C"), ("cpp_slots", "i8", 1, "C"),
     ("snakeoil_text", "u1", 1, "C"), ("snakeoil_ends", "i8", 1, "C"), ("snakeoil_slots", "i8", 1, "C"),
-    ("controls", "f8", 2, "C"), ("steps", "i8", 1, "C"), ("cars", "i8", 1, "C"),
-    ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
-    ("piece_table", "f8", 2, "C"), ("surfaces", "f8", 2, "C"), ("track_scalars", "f8", 1, "C"),
-    ("info", "i8", 1, "C"), ("x", "f8", 1, "C"), ("y", "f8", 1, "C"), ("yaw", "f8", 1, "C"),
-    ("piece", "i8", 1, "C"),
-    ("bp_geo", "f8", 2, "C"), ("bp_bar", "f8", 2, "C"), ("bp_cars", "f8", 2, "C"), ("bp_prm", "f8", 1, "C"),
-    ("bp_wall_cache", "f8", 2, "C"), ("bp_vref", "f8", 2, "C"), ("bp_pairs", "i8", 2, "C"),
-    ("bp_meta", "i8", 1, "C"), ("bp_flags", "i1", 1, "C"), ("bp_slack", "f8", 1, "C"),
-    ("near", "i8", 1, "C"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
-    ("contact_wall", "b1", 1, "C"), ("contact_car", "b1", 1, "C"), ("race_pos", "i8", 1, "C"),
-    ("track_geo", "f8", 2, "C"), ("track_runs", "f8", 2, "C"), ("piece_run", "i8", 1, "C"),
-    ("angles", "f8", 2, "C"), ("dist_origin", "f8", 1, "C"), ("active", "b1", 1, "C"),
-    ("focus_requested", "f8", 1, "C"), ("focus_next", "f8", 1, "C"), ("focus_earliest", "f8", 1, "C"),
-    ("due", "b1", 1, "C"), ("flat", "f8", 2, "C"),
+    ("controls", "f8", 2, "C"), ("steps", "i8", 1, "C"), ("u_tick", "f8", 2, "C"),
+)
+_OWN_LAST = (
     ("is_int", "b1", 1, "C"), ("literals", "u1", 1, "C"), ("literal_ends", "i8", 1, "C"),
     ("out", "u1", 2, "C"), ("out_len", "i8", 1, "C"), ("laps_seen", "f8", 1, "C"),
     ("decoded", "f8", 1, "C"), ("asked", "i8", 1, "C"), ("asked_focus", "f8", 1, "C"),
-    ("time_s", "f8", 1, "C"), ("on_track", "b1", 1, "C"), ("u_tick", "f8", 2, "C"),
 )
-(INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS, CARS, CP,
- CURVE_W, CURVE_T, PT, SURF, TSC, INFO, X, Y, YAW, PIECE, BP_GEO, BP_BAR, BP_CARS, BP_PRM, BP_WALL,
- BP_VREF, BP_PAIRS, BP_META, BP_FLAGS, BP_SLACK, NEAR, PATH, TURN, WALL, CAR, RACE_POS, GEO, RUNS,
- PIECE_RUN, ANGLES, ORIGIN, ACTIVE, REQUESTED, NEXT, EARLIEST, DUE, FLAT, IS_INT, LIT, LIT_END, OUT,
- OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS, TIME_S, ON_TRACK, U_TICK) = (np.int64(k) for k in range(len(TABLE)))
+TABLE = _OWN_FIRST + WORLD_TABLE + SENSOR_TABLE + _OWN_LAST
+(INBOX, INLEN, META, CPP_TEXT, CPP_ENDS, CPP_SLOTS, SO_TEXT, SO_ENDS, SO_SLOTS, U, STEPS,
+ U_TICK) = (np.int64(k) for k in range(len(_OWN_FIRST)))
+W0 = np.int64(len(_OWN_FIRST))
+S0 = np.int64(W0 + len(WORLD_TABLE))
+(IS_INT, LIT, LIT_END, OUT, OUT_LEN, LAPS_SEEN, DECODED, ASKED, ASKED_FOCUS) = (
+    np.int64(S0 + len(SENSOR_TABLE) + k) for k in range(len(_OWN_LAST)))
+CARS, FLAT, DUE = S0 + SN_CARS, S0 + SN_FLAT, S0 + SN_DUE
+REQUESTED, NEXT, EARLIEST = S0 + SN_REQUESTED, S0 + SN_NEXT, S0 + SN_EARLIEST
+RACE_POS, NEAR = W0 + W_RACE_POS, W0 + W_NEAR
 # int64 row numbers, not int literals: see array_table's views
 
 
@@ -81,11 +75,12 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
       controls and focus request stay); into controls (N, 5), meta (N,) and the focus
       requests. Stops where a datagram is in no stock layout (meta[i] = -1 marks those).
     STEP (when `stepping`, i.e. not in the countdown): `world_tick.step_world` on u_tick, the
-      tick's copy of controls (a shift's throttle cap writes into it); steps[0] = its
+      tick's copy of controls (`world_tick.step_table` , the World's arrays from row W0; a shift's throttle cap
+      writes into u_tick); steps[0] = its
       answer. Stops on a non-finite control (steps[0] < 0: nothing was changed) or something
       near (after sub-step steps[0]: World.finish_tick goes on from there).
-    SENSE: `sensor_kernel` into flat (N, 79), the focus cooldowns (`focus_due`) and the focus
-      readings due (`focus_kernel`); stops when not `plain` (noise or the countdown to apply;
+    SENSE (`sensors.sense_table`, the sensors' arrays from row S0): `sensor_kernel` into flat
+      (N, 79), the focus cooldowns (`focus_due`) and the focus readings due (`focus_kernel`); stops when not `plain` (noise or the countdown to apply;
       due (N,) bool says which cars get a focus reading).
     ENCODE: `codec_kernels.encode_rows` into out, out_len; stops when a row is left to the
       exact encoder (out_len -1).
@@ -97,7 +92,6 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
     """
     u = f8_matrix(t, U)
     n = u.shape[0]
-    cars = i8_vector(t, CARS)
     requested, next_allowed, earliest = f8_vector(t, REQUESTED), f8_vector(t, NEXT), f8_vector(t, EARLIEST)
     event = False
     if first <= DECODE < stop:
@@ -127,46 +121,16 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
             return DECODE
     race_pos = i8_vector(t, RACE_POS)
     if first <= STEP < stop and stepping:
-        near = i8_vector(t, NEAR)
+        # the tick runs on its own copy of the controls: a shift's throttle cap writes into it
+        # (TORCS's ctrl->accelCmd, held to the end of the driver call), never into what the
+        # client sent, which a silent client's car keeps using
         steps = i8_vector(t, STEPS)
-        bp = (readonly(f8_matrix(t, BP_GEO)), f8_matrix(t, BP_BAR), f8_matrix(t, BP_CARS), f8_vector(t, BP_PRM),
-              f8_matrix(t, BP_WALL), f8_matrix(t, BP_VREF), i8_matrix(t, BP_PAIRS), i8_vector(t, BP_META),
-              i1_vector(t, BP_FLAGS), f8_vector(t, BP_SLACK))
-        # the tick's own copy of the controls: a shift's throttle cap writes into it (TORCS's
-        # ctrl->accelCmd, held to the end of the driver call), never into what the client sent,
-        # which a silent client's car keeps using
-        u_tick = f8_matrix(t, U_TICK)
-        for i in range(u.shape[0]):
-            for j in range(u.shape[1]):
-                u_tick[i, j] = u[i, j]
-        steps[0] = step_world(u_tick, nsub, st, f8_matrix(t, CP), f8_matrix(t, CURVE_W), f8_matrix(t, CURVE_T),
-                              f8_matrix(t, PT), f8_matrix(t, SURF), f8_vector(t, TSC), dt, fuel_on, length,
-                              i8_vector(t, INFO), f8_vector(t, X), f8_vector(t, Y), f8_vector(t, YAW),
-                              i8_vector(t, PIECE), bp, near, snap, f8_vector(t, PATH),
-                              f8_vector(t, TURN), b1_vector(t, WALL), b1_vector(t, CAR), race_pos)
-        if steps[0] < 0 or near[0] != 0:
+        steps[0] = step_table(u, f8_matrix(t, U_TICK), nsub, st, snap, t, W0, dt, fuel_on, length)
+        if steps[0] < 0 or i8_vector(t, NEAR)[0] != 0:
             return STEP
     if first <= SENSE < stop:
-        flat, due = f8_matrix(t, FLAT), b1_vector(t, DUE)
-        sensor_kernel(cars, st, readonly(f8_matrix(t, GEO)), readonly(f8_matrix(t, RUNS)),
-                      readonly(i8_vector(t, PIECE_RUN)), half_width,
-                      f8_matrix(t, ANGLES), race_pos, f8_vector(t, ORIGIN), b1_vector(t, ACTIVE), max_range,
-                      flat)
-        count = 0
-        if st[0, S_TIME] >= earliest[0]:        # one clock for all cars
-            time_s, on_track = f8_vector(t, TIME_S), b1_vector(t, ON_TRACK)
-            for k in range(cars.shape[0]):
-                time_s[k] = st[cars[k], S_TIME]
-                on_track[k] = abs(flat[k, O_TPOS]) <= 1.0
-            count = focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due)
-        if not plain:                           # noise or the countdown: Python finishes the frame
-            if count == 0:
-                due[:] = False
-            return SENSE
-        if count > 0:                           # the focus readings due, as SensorSuite.finish_frame
-            focus_kernel(cars, st, due, requested, readonly(f8_matrix(t, GEO)), length,
-                         readonly(f8_matrix(t, RUNS)), readonly(i8_vector(t, PIECE_RUN)), half_width,
-                         max_range, flat)
+        if not sense_table(st, t, S0, race_pos, length, half_width, max_range, plain):
+            return SENSE                    # noise or the countdown: Python finishes the frame
     if first <= ENCODE < stop:
         out_len = i8_vector(t, OUT_LEN)
         encode_rows(f8_matrix(t, FLAT), b1_vector(t, IS_INT), readonly(u1_vector(t, LIT)), i8_vector(t, LIT_END),
@@ -224,12 +188,14 @@ class ServerTick:
         if w is None or w is self._world_args:
             return
         self._world_args = w
-        geo, runs, piece_run, half, angles, _, origin, active, max_range, *focus = self.suite.kernel_args()
+        _, _, _, half, _, _, _, _, max_range, *_ = self.suite.kernel_args()
         is_int, lit, lit_end, max_bytes = P.STATE_ENCODER.kernel_args()
+        decoded, asked, asked_focus, time_s, on_track = self._scratch
         arrays = (self.inbox, self.inlen, self.meta, *P.STOCK_LAYOUTS[0], *P.STOCK_LAYOUTS[1], self.u,
-                  self.steps, self.cars, *w[1:7], *w[10:15], *w[15], w[16], *w[18:], geo, runs, piece_run, angles,
-                  origin, active, *focus, self.due, self.flat, is_int, lit, lit_end, self.out, self.out_len,
-                  self.laps_seen, *self._scratch, self.u_tick)
+                  self.steps, self.u_tick, *world_table_arrays(w),
+                  *sensor_table_arrays(self.suite, self.cars, self.due, self.flat, (time_s, on_track)),
+                  is_int, lit, lit_end, self.out, self.out_len, self.laps_seen, decoded, asked,
+                  asked_focus)
         self._arrays = arrays             # alive as long as the table is used
         # the state and its scratch copy go as arguments: typed as World.step's callers see them
         # (C order for one car), so the physics kernels are compiled once for both

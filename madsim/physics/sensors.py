@@ -12,6 +12,7 @@ import math
 import numba
 import numpy as np
 
+from madsim.array_table import b1_vector, f8_matrix, f8_vector, i8_vector, readonly
 from madsim.facts import SCR_CPP_CLIENT_ANGLES_DEG, SCR_FIELDS
 from madsim.physics import layout as L
 from madsim.physics.kernel import NO_REFCOUNT
@@ -336,3 +337,57 @@ def _active(world, suite) -> np.ndarray:
     active = getattr(world, "active", None)
     return suite._all_active if active is None else np.asarray(active, dtype=np.bool_)
 
+
+
+# --- the sensors of a compiled door (the SCR server's, MadrasEnv's), from an address table ---
+
+SENSOR_TABLE = (
+    ("cars", "i8", 1, "C"), ("track_geo", "f8", 2, "C"), ("track_runs", "f8", 2, "C"),
+    ("piece_run", "i8", 1, "C"), ("angles", "f8", 2, "C"), ("dist_origin", "f8", 1, "C"),
+    ("active", "b1", 1, "C"), ("focus_requested", "f8", 1, "C"), ("focus_next", "f8", 1, "C"),
+    ("focus_earliest", "f8", 1, "C"), ("due", "b1", 1, "C"), ("flat", "f8", 2, "C"),
+    ("time_s", "f8", 1, "C"), ("on_track", "b1", 1, "C"),
+)
+"""The rows a door's address table (`madsim.array_table`) holds for `sense_table`, in this order
+from its row s0 (`sensor_table_arrays`)."""
+(SN_CARS, SN_GEO, SN_RUNS, SN_PIECE_RUN, SN_ANGLES, SN_ORIGIN, SN_ACTIVE, SN_REQUESTED, SN_NEXT,
+ SN_EARLIEST, SN_DUE, SN_FLAT, SN_TIME_S, SN_ON_TRACK) = (np.int64(k) for k in range(len(SENSOR_TABLE)))
+
+
+def sensor_table_arrays(suite: SensorSuite, cars: np.ndarray, due: np.ndarray, flat: np.ndarray,
+                        scratch: tuple) -> tuple:
+    """The arrays of `SENSOR_TABLE`, in its order: the suite's (`SensorSuite.kernel_args`), the
+    cars sensed (N,) int64, the focus readings due (N,) bool, the rows (N, 79) and the scratch
+    (time_s (N,) float64, on_track (N,) bool)."""
+    geo, runs, piece_run, _, angles, _, origin, active, _, *focus = suite.kernel_args()
+    return (cars, geo, runs, piece_run, angles, origin, active, *focus, due, flat, *scratch)
+
+
+@numba.njit(cache=True)
+def sense_table(st, t, s0, race_pos, length, half_width, max_range, plain):
+    """`SensorSuite.frame` from the arrays at rows s0.. of address table t (`SENSOR_TABLE`): the
+    rows of `cars` into flat (`sensor_kernel`), the focus cooldowns (`focus_due`) and the
+    readings due (`focus_kernel`). Returns False, the frame unfinished, when not `plain` (noise
+    to apply: `SensorSuite.finish_frame` with due, cleared if none is due); else True."""
+    cars, flat, due = i8_vector(t, s0 + SN_CARS), f8_matrix(t, s0 + SN_FLAT), b1_vector(t, s0 + SN_DUE)
+    requested, next_allowed = f8_vector(t, s0 + SN_REQUESTED), f8_vector(t, s0 + SN_NEXT)
+    earliest = f8_vector(t, s0 + SN_EARLIEST)
+    geo, runs = readonly(f8_matrix(t, s0 + SN_GEO)), readonly(f8_matrix(t, s0 + SN_RUNS))
+    piece_run = readonly(i8_vector(t, s0 + SN_PIECE_RUN))
+    sensor_kernel(cars, st, geo, runs, piece_run, half_width, f8_matrix(t, s0 + SN_ANGLES), race_pos,
+                  f8_vector(t, s0 + SN_ORIGIN), b1_vector(t, s0 + SN_ACTIVE), max_range, flat)
+    count = 0
+    if st[0, L.S_TIME] >= earliest[0]:        # one clock for all cars
+        time_s, on_track = f8_vector(t, s0 + SN_TIME_S), b1_vector(t, s0 + SN_ON_TRACK)
+        for k in range(cars.shape[0]):
+            time_s[k] = st[cars[k], L.S_TIME]
+            on_track[k] = abs(flat[k, O_TPOS]) <= 1.0
+        count = focus_due(cars, time_s, on_track, requested, next_allowed, earliest, due)
+    if not plain:
+        if count == 0:
+            due[:] = False
+        return False
+    if count > 0:
+        focus_kernel(cars, st, due, requested, geo, length, runs, piece_run, half_width, max_range,
+                     flat)
+    return True

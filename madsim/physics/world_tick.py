@@ -10,6 +10,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from madsim.array_table import (b1_vector, f8_matrix, f8_vector, i1_vector, i8_matrix, i8_vector,
+                                readonly)
 from madsim.physics.contact_kernels import SNAP_COLUMNS, advance_until_near
 from madsim.physics.kernel import check_controls, slipstream
 from madsim.physics.layout import S_DIST, S_LAPS
@@ -66,3 +68,51 @@ def step_world(u, nsub, st, cp, curve_w, curve_t, pt, surf, tsc, dt, fuel_on, le
     if near[0] == 0 and n > 1:
         race_positions(st, race_pos)
     return k
+
+
+# --- the tick of a compiled door (the SCR server's, MadrasEnv's), from an address table ------
+
+WORLD_TABLE = (
+    ("car_table", "f8", 2, "C"), ("curve_w", "f8", 2, "C"), ("curve_t", "f8", 2, "C"),
+    ("piece_table", "f8", 2, "C"), ("surfaces", "f8", 2, "C"), ("track_scalars", "f8", 1, "C"),
+    ("info", "i8", 1, "C"), ("x", "f8", 1, "C"), ("y", "f8", 1, "C"), ("yaw", "f8", 1, "C"),
+    ("piece", "i8", 1, "C"),
+    ("bp_geo", "f8", 2, "C"), ("bp_bar", "f8", 2, "C"), ("bp_cars", "f8", 2, "C"), ("bp_prm", "f8", 1, "C"),
+    ("bp_wall_cache", "f8", 2, "C"), ("bp_vref", "f8", 2, "C"), ("bp_pairs", "i8", 2, "C"),
+    ("bp_meta", "i8", 1, "C"), ("bp_flags", "i1", 1, "C"), ("bp_slack", "f8", 1, "C"),
+    ("near", "i8", 1, "C"), ("path", "f8", 1, "C"), ("turn", "f8", 1, "C"),
+    ("contact_wall", "b1", 1, "C"), ("contact_car", "b1", 1, "C"), ("race_pos", "i8", 1, "C"),
+)
+"""The rows a door's address table (`madsim.array_table`) holds for `step_table`, in this order
+from its row w0: World.tick_args' arrays (`world_table_arrays`; the contact arrays are the
+ContactSolver's broad-phase arguments)."""
+(W_CP, W_CURVE_W, W_CURVE_T, W_PT, W_SURF, W_TSC, W_INFO, W_X, W_Y, W_YAW, W_PIECE, W_BP_GEO, W_BP_BAR,
+ W_BP_CARS, W_BP_PRM, W_BP_WALL, W_BP_VREF, W_BP_PAIRS, W_BP_META, W_BP_FLAGS, W_BP_SLACK, W_NEAR,
+ W_PATH, W_TURN, W_WALL, W_CAR, W_RACE_POS) = (np.int64(k) for k in range(len(WORLD_TABLE)))
+
+
+def world_table_arrays(tick_args: tuple) -> tuple:
+    """The arrays of `WORLD_TABLE`, in its order, from a World's `tick_args`."""
+    w = tick_args
+    return (*w[1:7], *w[10:15], *w[15], w[16], *w[18:])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def step_table(u, u_tick, nsub, st, snap, t, w0, dt, fuel_on, length):
+    """`step_world` on u_tick, a copy of the controls u made here (a shift's throttle cap writes
+    into it, never into what the driver sent), with the World's arrays at rows w0.. of address
+    table t (`WORLD_TABLE`); returns step_world's answer."""
+    for i in range(u.shape[0]):
+        for j in range(u.shape[1]):
+            u_tick[i, j] = u[i, j]
+    bp = (readonly(f8_matrix(t, w0 + W_BP_GEO)), f8_matrix(t, w0 + W_BP_BAR), f8_matrix(t, w0 + W_BP_CARS),
+          f8_vector(t, w0 + W_BP_PRM), f8_matrix(t, w0 + W_BP_WALL), f8_matrix(t, w0 + W_BP_VREF),
+          i8_matrix(t, w0 + W_BP_PAIRS), i8_vector(t, w0 + W_BP_META), i1_vector(t, w0 + W_BP_FLAGS),
+          f8_vector(t, w0 + W_BP_SLACK))
+    return step_world(u_tick, nsub, st, f8_matrix(t, w0 + W_CP), f8_matrix(t, w0 + W_CURVE_W),
+                      f8_matrix(t, w0 + W_CURVE_T), f8_matrix(t, w0 + W_PT), f8_matrix(t, w0 + W_SURF),
+                      f8_vector(t, w0 + W_TSC), dt, fuel_on, length, i8_vector(t, w0 + W_INFO),
+                      f8_vector(t, w0 + W_X), f8_vector(t, w0 + W_Y), f8_vector(t, w0 + W_YAW),
+                      i8_vector(t, w0 + W_PIECE), bp, i8_vector(t, w0 + W_NEAR), snap,
+                      f8_vector(t, w0 + W_PATH), f8_vector(t, w0 + W_TURN), b1_vector(t, w0 + W_WALL),
+                      b1_vector(t, w0 + W_CAR), i8_vector(t, w0 + W_RACE_POS))

@@ -8,7 +8,7 @@ import pytest
 
 from madsim.cli import make_world_factory
 from madsim.net import protocol as P
-from madsim.net.array_table import address_table
+from madsim.array_table import address_table
 from madsim.net.server import MAX_DAMAGE, RECV_BYTES
 from madsim.net.server_tick import DECODE, DONE, EVENT, SENSE, ServerTick
 from madsim.physics.layout import S_SHIFT
