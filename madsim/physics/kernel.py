@@ -45,7 +45,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_DRIVEN_R, C_EBRAKE, C_EF, C_ER, C_FSHARE, C_FUELCONS, C_H, C_IDRIVE_F, C_IDRIVE_R, C_IENG,
     C_IFREE_F, C_IFREE_R, C_IZZ, C_KB, C_KMU, C_L, C_LFK, C_LFMAX, C_LFMIN, C_LIMIT, C_LOCK, C_MASS,
     C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
-    C_SKID, C_STEERSPD, C_TF, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
+    C_SKID, C_STEERSPD, C_TF, C_TR, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
     C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN, C_BELL, C_IXX, C_IYY, C_RBELL, C_RIXX, C_RIYY, C_RTR2,
     C_RWB2, C_FINISH,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
@@ -150,6 +150,25 @@ def tyre_shape(s, b, c, e, skid):
     and there is no branch, so a loop over wheels runs in SIMD lanes."""
     f, num, den = _shape_parts(s, b, c, e, skid)
     return f, num / den
+
+
+@numba.njit(inline="always", **_JIT)
+def wheel_track(cp, i):
+    """The wheel track car i's Ackermann angle uses, m: TORCS 1.3.7's `wheeltrack` (SimCarConfig
+    sums all four wheels' y: the mean of the front and rear axles' tracks), not the front
+    axle's own (docs/physics.md, "Drive line")."""
+    return 0.5 * (cp[i, C_TF] + cp[i, C_TR])
+
+
+@numba.njit(inline="always", **_JIT)
+def front_wheel_angles(d, wb, track):
+    """(right, left) front wheel steer angles, rad, for the steer angle d (rad, left +), wheelbase
+    wb and wheel track (m, `wheel_track`): the inner wheel turns by d, the outer by
+    atan(wb tan|d| / (wb + track tan|d|)) with d's sign (TORCS 1.3.7's SimSteerUpdate, whose
+    negative wheeltrack makes its `wheelbase - tan x wheeltrack` this sum; spec 4.2)."""
+    t_d = math.tan(abs(d))
+    outer = math.copysign(math.atan(wb * t_d / (wb + track * t_d)), d)
+    return (outer, d) if d > 0.0 else (d, outer)
 
 
 @numba.njit(inline="always", **_JIT)
@@ -598,7 +617,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     a, b, wb, h = cp[i, C_A], cp[i, C_B], cp[i, C_L], cp[i, C_H]
     izz, mass_dry = cp[i, C_IZZ], cp[i, C_MASS]
     inv_izz = 1.0 / izz
-    lock, steer_rate, track_f = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, cp[i, C_TF]
+    lock, steer_rate, track_w = cp[i, C_LOCK], cp[i, C_STEERSPD] * dt, wheel_track(cp, i)
     rad0, rad1, rad2, rad3 = cp[i, C_RAD], cp[i, C_RAD + 1], cp[i, C_RAD + 2], cp[i, C_RAD + 3]
     skid = cp[i, C_SKID]
     bf, cf, ef, br, cr, er = cp[i, C_BF], cp[i, C_CF], cp[i, C_EF], cp[i, C_BR], cp[i, C_CR], cp[i, C_ER]
@@ -690,14 +709,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
                 tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
 
         # --- steering: rate-limited towards steer * lock; Ackermann (spec 4.2): the inner
-        # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|)); each wheel's
-        # heading adds its static toe
+        # front wheel turns by d, the outer by atan(L tan|d| / (L + t tan|d|)), t TORCS's wheel
+        # track (`front_wheel_angles`); each wheel's heading adds its static toe
         d += min(max(steer_cmd * lock - d, -steer_rate), steer_rate)
         if d != d_done:
             d_done = d
-            t_d = math.tan(abs(d))
-            outer = math.copysign(math.atan(wb * t_d / (wb + track_f * t_d)), d)
-            d0, d1 = (outer, d) if d > 0.0 else (d, outer)      # wheel 0 right, 1 left
+            d0, d1 = front_wheel_angles(d, wb, track_w)        # wheel 0 right, 1 left
             cd0, sd0 = math.cos(d0 + toe0), math.sin(d0 + toe0)     # heading = steer + toe
             cd1, sd1 = math.cos(d1 + toe1), math.sin(d1 + toe1)
             l_cd[0], l_sd[0], l_cd[1], l_sd[1] = cd0, sd0, cd1, sd1

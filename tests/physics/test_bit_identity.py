@@ -59,11 +59,11 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "6b76b6190821ba6f860b4fe64d85f182544b0ed7440938ac74819d0819586745",
-    "six_contact": "7674c5fcde52cfa9864fffcd740b8f4e3a95527dacad997ece175e259866a300",
-    "four_wd": "6e36b6abed131aeacc720a0e61211ea03bf5f1d54c55d5bef0e1ee985cba5f68",
-    "vec_traffic": "a8020073ed69e8911251dc7050240d813eed94d92cabefbb57796db03595deb7",
-    "env_ts": "51d7a13ec1d91b1b451efd9e822b9e30e05c111c0f1ae872f9f31e2ef4a7745b",
-    "rough_track": "1cc3d3f3f8b9daeba749d4de9afbefb41dd7b0223bfffd1c79aba3d2a1d968b5",
+    "six_contact": "b5add59421dadd839028390ca63213e21f9b63034d5c2c71b495e9dfee565753",
+    "four_wd": "e9f11b1b194666d081cd68e712023e1d93e4768cebd87946a9b098b7d8a800b0",
+    "vec_traffic": "c8414e136d35e8e1fb94abd7be8c468e99d31ca8db2bc4d9fd085a48d6e1ebbd",
+    "env_ts": "2250f9c0cd5ab079a1ca67aef320aad8729bfc5270a8dece8c7839340ea0ed6b",
+    "rough_track": "0683c6a98693fae73f2b17401c5cacceb3f3de76e720ec92b2844550f70bc17a",
 }
 
 

@@ -139,7 +139,9 @@ def test_free_rolling_wheels_each_roll_at_their_own_contact_speed(ph, make_track
     assert r > 0.2                                    # turning left, rad/s
     spin = w.wheel_spin[0]
     # Ackermann (spec 4.2): the inner (left) wheel turns by d, the outer by a smaller angle
-    outer = np.arctan(car.wheelbase * np.tan(d) / (car.wheelbase + car.track_front * np.tan(d)))
+    # (TORCS's wheel track: the mean of the front and rear tracks)
+    track = 0.5 * (car.track_front + car.track_rear)
+    outer = np.arctan(car.wheelbase * np.tan(d) / (car.wheelbase + track * np.tan(d)))
     for k, dk in ((0, outer), (1, d)):
         xk, yk = car.wheel_pos[k]
         vt = (vx - yk * r) * np.cos(dk) + (vy + xk * r) * np.sin(dk)
