@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from madsim.array_table import address_table
 from madsim.cars.spec import CarSpec
 from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
 from madsim.physics import kernel, suspension, world_tick
@@ -26,6 +27,7 @@ DT = SUBSTEP_S
 SUBSTEPS = SUBSTEPS_PER_TICK
 """Sub-steps per tick: controls are held for DT * SUBSTEPS = 0.02 s."""
 TICK = TICK_S
+_W0 = np.int64(0)        # `world_tick.step_table`'s first row: the table holds the World's alone
 
 NAN_POLICIES = ("raise", "zero")
 
@@ -252,17 +254,25 @@ class World:
         if substeps != SUBSTEPS and not (isinstance(substeps, (int, np.integer)) and 1 <= substeps <= 100):
             raise ValueError(f"substeps must be an integer in 1..100, got {substeps!r}")
         nsub = int(substeps)
+        if self.tick_args is not None:
+            u = np.ascontiguousarray(controls, dtype=np.float64)
+            if u.shape != (self.n_cars, 5):
+                raise ValueError(f"controls must have shape ({self.n_cars}, 5) = "
+                                 f"(steer, accel, brake, gear, clutch) per car, got {u.shape}")
+            if not u.flags.writeable:
+                u = u.copy()
+            a, u_tick = self.tick_args, self._u_tick   # the tick runs on u_tick, a copy of u
+            k = world_tick.step_table(u, u_tick, nsub, a[0], a[17], self._tick_table, _W0, DT,
+                                      self.fuel_on, a[9])
+            if k == world_tick.NONFINITE:
+                k = world_tick.step_table(self._nonfinite(u), u_tick, nsub, a[0], a[17],
+                                          self._tick_table, _W0, DT, self.fuel_on, a[9])
+            self.finish_tick(u_tick, nsub, k)
+            return
         u = np.array(controls, dtype=np.float64, order="C")   # a copy: a shift's cap writes its accel
         if u.shape != (self.n_cars, 5):
             raise ValueError(f"controls must have shape ({self.n_cars}, 5) = "
                              f"(steer, accel, brake, gear, clutch) per car, got {u.shape}")
-        if self.tick_args is not None:
-            k = world_tick.step_world(u, nsub, *self.tick_args)
-            if k == world_tick.NONFINITE:
-                u = self._nonfinite(u)
-                k = world_tick.step_world(u, nsub, *self.tick_args)
-            self.finish_tick(u, nsub, k)
-            return
         kernel.check_controls(u, self._info)
         if self._info[0]:
             u = self._nonfinite(u)
@@ -353,6 +363,9 @@ class World:
                           self._tsc, DT, self.fuel_on, self.track.length, self._info, cols[0], cols[1],
                           cols[2], self._piece_i, bp, self._near, self._snap, self._path, self._turn,
                           self.contact_wall, self.contact_car, self.race_pos)
+        self._tick_table = address_table(world_tick.world_table_arrays(self.tick_args),
+                                         world_tick.WORLD_TABLE)
+        self._u_tick = np.zeros((self.n_cars, 5))
 
     def _update_race_pos(self) -> None:
         world_tick.race_positions(self.state, self.race_pos)
