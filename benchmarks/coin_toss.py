@@ -24,7 +24,6 @@ Messages count from the first racing message (0), as the trace's rows after the 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import sys
 from pathlib import Path
@@ -35,16 +34,8 @@ AT_REST_KMH = 2.0
 """A variant "ends at rest" when its speedX at the last probe is below this (km/h)."""
 
 
-def _load_fidelity():
-    """benchmarks/fidelity.py (the replay and the controller), loaded from beside this file."""
-    spec = importlib.util.spec_from_file_location("madsim_fidelity_bench", Path(__file__).with_name("fidelity.py"))
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod          # its dataclass looks its module up there
-    spec.loader.exec_module(mod)
-    return mod
-
-
-fidelity = _load_fidelity()
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from slide_window import fidelity  # noqa: E402  (benchmarks/fidelity.py, loaded beside this file)
 
 
 def damage_events(rec: dict[str, np.ndarray]) -> list[tuple[int, float, float, float, float]]:

@@ -171,7 +171,8 @@ C_RTR2 = C_RWB2 + 1       # 1 / (left pair's y - right pair's y), 1/m
 C_DMGK = C_RTR2 + 1       # damage factor of the driver's skill (spec 4.12; 0: damage off)
 C_FINISH = C_DMGK + 1     # start-line crossings at which the car has finished (race laps + 1; 0: never):
                           # no damage after them, TORCS's slow pace (kernel.advance_car)
-N_CAR = C_FINISH + 1
+C_WTRACK = C_FINISH + 1   # the wheel track of the Ackermann angle, m (`kernel.wheel_track`)
+N_CAR = C_WTRACK + 1
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,

@@ -1,24 +1,18 @@
 """benchmarks/coin_toss.py (issue 12, session 12): the damage events and first parting of two
 runs' records, and the nudges it gives madsim's car, in closed form."""
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "coin_toss.py"
+from tests.benchmarks.conftest import load_script, unload
 
 
 @pytest.fixture(scope="module")
 def toss():
-    spec = importlib.util.spec_from_file_location("madsim_coin_toss", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    yield mod
-    sys.modules.pop("madsim_fidelity_bench", None)
+    yield load_script("coin_toss")
+    unload()
 
 
 def test_damage_events_are_the_messages_where_damage_grows(toss):
@@ -51,10 +45,8 @@ def test_nudges_move_the_cars_state_as_named():
     from madsim.physics.world import World
     from madsim.tracks import load_track
 
-    spec = importlib.util.spec_from_file_location("madsim_coin_toss_nudge", SCRIPT)
-    toss = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(toss)
-    sys.modules.pop("madsim_fidelity_bench", None)
+    toss = load_script("coin_toss")
+    unload()
     w = World(load_track("g-track-1"), [load_car("car1-trb1")], np.random.default_rng(0), contact=False)
     w.reset()
     st = w.state

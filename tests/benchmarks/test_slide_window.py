@@ -1,23 +1,16 @@
 """benchmarks/slide_window.py's yaw-rate estimate from SCR's `angle` (issue 12's sand2 round):
 closed-form cases, including the heading wrapping through +-pi."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "slide_window.py"
+from tests.benchmarks.conftest import load_script, unload
 
 
 @pytest.fixture(scope="module")
 def slide():
-    spec = importlib.util.spec_from_file_location("madsim_slide_window", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    yield mod
-    sys.modules.pop("madsim_fidelity_bench", None)
+    yield load_script("slide_window")
+    unload()
 
 
 def test_yaw_rate_of_a_car_following_a_turn_through_pi(slide):

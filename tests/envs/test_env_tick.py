@@ -6,11 +6,10 @@ written in Python) and through resets."""
 import numpy as np
 import pytest
 
-import madsim.agents.rewards as rewards_module
 from madsim.envs import env_tick
 from madsim.envs.core import MadrasCore
 from madsim.envs.madras_env import MadrasEnv
-from tests.envs.test_vector import same
+from tests.envs.test_vector import same, throttle_reward
 
 
 def episode_log(cfg, steps, actions, *, compiled, seed=5):
@@ -99,24 +98,13 @@ def test_track_speed_actions_with_noise_and_manual_gear():
 
 
 def test_a_reward_written_in_python_is_called_by_the_compiled_step():
-    @rewards_module.register_reward("TestEnvTickThrottle")
-    class Throttle(rewards_module.RewardComponent):
-        def reset(self):
-            self.calls = 0
-
-        def __call__(self, prev, cur, action, info):
-            self.calls += 1
-            return action[1] + (cur["distRaced"] - prev["distRaced"]) / self.calls
-
-    try:
+    with throttle_reward("TestEnvTickThrottle"):
         cfg = {"server": {"max_steps": 30},
                "agents": [{"rewards": {"TestEnvTickThrottle": 2.0, "Progress2": 1.0}}]}
         log, stages = compare(cfg, 40, sab)
-        assert stages.get(env_tick.OUTCOME, 0) >= 40
-        assert all(step[4]["reward_terms"]["TestEnvTickThrottle"] > 0.0
-                   for step in log if len(step) == 5)
-    finally:
-        rewards_module.REWARDS.pop("TestEnvTickThrottle")
+    assert stages.get(env_tick.OUTCOME, 0) >= 40
+    assert all(step[4]["reward_terms"]["TestEnvTickThrottle"] > 0.0
+               for step in log if len(step) == 5)
 
 
 @pytest.mark.parametrize("cfg", [

@@ -6,6 +6,8 @@ structure (reset infos with their seeds, step infos, final_obs / final_info) mus
 with no tolerance, over enough steps that episodes end and autoreset several times.
 """
 
+import contextlib
+
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
@@ -156,11 +158,13 @@ def test_madras_compatible_pid_with_raw_units_matches():
     assert ended >= 2
 
 
-def test_a_registered_reward_without_batched_form_is_called_per_episode():
-    @rewards_module.register_reward("TestVectorThrottle")
+@contextlib.contextmanager
+def throttle_reward(name: str):
+    """A reward registered as `name` for the block: it pays the step's accel action and the
+    distance of the tick divided by its calls this episode (it needs the action, the rows and
+    its own state: no batched form)."""
+    @rewards_module.register_reward(name)
     class Throttle(rewards_module.RewardComponent):
-        """Pays the step's accel action and the distance of the tick (needs action and rows)."""
-
         def reset(self):
             self.calls = 0
 
@@ -169,11 +173,16 @@ def test_a_registered_reward_without_batched_form_is_called_per_episode():
             return action[1] + (cur["distRaced"] - prev["distRaced"]) / self.calls
 
     try:
+        yield
+    finally:
+        rewards_module.REWARDS.pop(name)
+
+
+def test_a_registered_reward_without_batched_form_is_called_per_episode():
+    with throttle_reward("TestVectorThrottle"):
         cfg = {"server": {"max_steps": 30},
                "agents": [{"rewards": {"TestVectorThrottle": 2.0, "Progress2": 1.0}}]}
         compare(cfg, 2, 35)
-    finally:
-        rewards_module.REWARDS.pop("TestVectorThrottle")
 
 
 def test_without_contact_and_with_fuel_the_episodes_still_match():
