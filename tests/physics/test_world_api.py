@@ -149,3 +149,30 @@ def test_fuel_is_consumed_only_when_switched_on(road, sedan):
         off.step(u)
     assert off.fuel[0] == sedan.fuel
     assert 0.0 < sedan.fuel - on.fuel[0] < 0.1    # |T| we factor 1e-7 dt: grams per second
+
+
+def test_step_leaves_the_callers_controls_alone_whatever_their_layout(road, sedan):
+    # World.step runs the tick on its own copy of the controls (a shift caps the throttle in
+    # it: gear 1 -> 2 below); the caller's array, read-only or in Fortran order, is never
+    # written and gives the same bits as a plain C array
+    def run(make_u):
+        w = make(road, [sedan] * 2, contact=True)
+        w.reset([[100.0, 0.0, 5.0], [130.0, 0.0, 5.0]], gears=1)
+        seen = []
+        for t in range(30):
+            u = make_u(np.array([[0.0, 1.0, 0.0, 1.0 if t < 5 else 2.0, 0.0]] * 2))
+            before = np.array(u)
+            w.step(u)
+            assert np.array_equal(np.array(u), before)
+            seen.append(w.state.copy())
+        return np.array(seen)
+
+    def read_only(u):
+        u.flags.writeable = False
+        return u
+
+    plain = run(lambda u: u)
+    assert np.array_equal(plain, run(read_only))
+    assert np.array_equal(plain, run(np.asfortranarray))
+    assert np.array_equal(plain, run(lambda u: u.tolist()))
+    assert plain[-1, 0, L.S_GEAR] == 2.0 and plain[-1, 0, L.S_VX] > plain[5, 0, L.S_VX]
