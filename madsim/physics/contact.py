@@ -3,6 +3,9 @@
 `ContactSolver.resolve` runs after every 0.002 s sub-step with the cars' poses and global
 velocities, which it changes in place (positions separated, velocities changed by the contact),
 and returns a `ContactReport` (per car: wall contact, car contact, damage added; car pairs).
+The World's tick takes the same steps without the report: its compiled stepper runs the broad
+phase, `ContactSolver.narrow` the pymunk step, and `world_tick.finish_contact` the response
+and the tick's bookkeeping (one Python call per sub-step where something is near).
 
 1. Broad phase (compiled, no pymunk). Walls: per car a conservative clearance to the barrier
    lines and the pit walls (lateral extent of the box at the car's track position against the
@@ -231,6 +234,7 @@ class ContactSolver:
             self._bodies.append(body)
             self._shapes.append(shape)
         self._id_keys = self._id_codes = np.zeros(0, dtype=np.int64)
+        self.arrays_version = 0            # bumped when an array of respond_arrays() is replaced
         self._code_of: dict = {}
         self._member = np.zeros(n, dtype=bool)
         self._idle = np.zeros(n, dtype=np.int64)
@@ -316,26 +320,24 @@ class ContactSolver:
         if not ok:
             self._explain_bad_arrays(x, y, yaw, vx, vy, yaw_rate, piece, dt)
         self._counts["calls"] += 1
+        if self.broad_phase(x, y, yaw, piece) == 0:
+            return self._empty
+        return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
+
+    def broad_phase(self, x, y, yaw, piece) -> int:
+        """The broad phase on this state (arrays as `resolve` checks them), its pair list grown
+        until it fits: the number of cars near something (0: nothing to resolve). Raises
+        ValueError for a piece index out of range."""
         while True:
             near = _broad_phase(x, y, yaw, piece, *self.broad_phase_args)
             if near >= 0:
-                break
+                return near
             if near < -1:
                 i = -2 - near
                 raise ValueError(f"ContactSolver.resolve: piece[{i}] = {piece[i]} is not a piece "
                                  f"index of track {self.track.name!r} (0..{self._geo.shape[0] - 1})")
             self._pairs = np.zeros((2 * self._pairs.shape[0], 2), dtype=np.int64)
             self._meta[0] = 0
-        if near == 0:
-            return self._empty
-        return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
-
-    def resolve_flagged(self, x, y, yaw, vx, vy, yaw_rate, piece, dt) -> ContactReport:
-        """`resolve` for a caller whose compiled loop has just run `broad_phase_kernel` on this
-        very state and found cars near (it returned > 0): the same result without checking the
-        arrays or running the broad phase again (World's arrays, `advance_until_near`)."""
-        self._counts["calls"] += 1
-        return self._consult(x, y, yaw, vx, vy, yaw_rate, piece, float(dt))
 
     def _explain_bad_arrays(self, *args) -> None:
         n = self.n_cars
@@ -351,8 +353,36 @@ class ContactSolver:
     # --- narrow phase -------------------------------------------------------------------------
 
     def _consult(self, x, y, yaw, vx, vy, w, piece, dt) -> ContactReport:
-        self._counts["consults"] += 1
+        ints, floats = self._narrow(x, y, yaw, dt)
         n = self.n_cars
+        wall = np.zeros(n, dtype=bool)
+        car = np.zeros(n, dtype=bool)
+        damage = np.zeros(n)
+        count = _respond_settle(ints, floats, self._id_keys, self._id_codes, x, y, yaw, vx, vy, w,
+                                piece, self._cars, self._mat, self._geo, self._bar, self._prm,
+                                self._pairs, self._meta, self._flags, self._slack, wall, car,
+                                damage, self._blocked, self._moved, self._travel, self._pair_out)
+        pairs = sorted(map(tuple, self._pair_out[:count].tolist()))
+        return ContactReport(wall=wall, car=car, damage=damage, pairs=pairs)
+
+    def narrow(self, x, y, yaw, dt) -> tuple[np.ndarray, np.ndarray]:
+        """The pymunk narrow phase for a caller that responds itself (World.finish_tick through
+        `world_tick.finish_contact`), on a state where `broad_phase` (or the compiled broad phase
+        on the same arrays) has just found cars near: the arbiters' integers (K, 3) and floats
+        (K, 12) flattened, what `_respond_settle` reads. Counted as a resolve() call. Arrays
+        the response writes may be new ones afterwards: see `respond_arrays`."""
+        self._counts["calls"] += 1
+        return self._narrow(x, y, yaw, float(dt))
+
+    def respond_arrays(self) -> tuple:
+        """The solver's arrays `_respond_settle` reads and writes besides the poses and the
+        broad phase's (id keys, id codes, material table, blocked, moved, travel, pair out);
+        `arrays_version` changes whenever one of them is replaced."""
+        return (self._id_keys, self._id_codes, self._mat, self._blocked, self._moved,
+                self._travel, self._pair_out)
+
+    def _narrow(self, x, y, yaw, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        self._counts["consults"] += 1
         if self._space is None:
             self._take_space()
         n_add, n_drop = _membership_poses(self._flags, self._member, self._idle, self._add,
@@ -360,9 +390,6 @@ class ContactSolver:
         if n_add or n_drop:
             self._sync_members(n_add, n_drop)
             _fill_poses(self._slots, x, y, yaw, self._poses)
-        wall = np.zeros(n, dtype=bool)
-        car = np.zeros(n, dtype=bool)
-        damage = np.zeros(n)
         pmb.set_space_bodies(self._space, _BODY_FIELDS, self._set_buf)
         self._space.step(dt)
         self._counts["pymunk_steps"] += 1
@@ -374,12 +401,8 @@ class ContactSolver:
         need = ints.size // _ARB_INTS + 4 * self._meta[1] + 1
         if need > self._pair_out.shape[0]:
             self._pair_out = np.zeros((2 * need, 2), dtype=np.int64)
-        count = _respond_settle(ints, floats, self._id_keys, self._id_codes, x, y, yaw, vx, vy, w,
-                                piece, self._cars, self._mat, self._geo, self._bar, self._prm,
-                                self._pairs, self._meta, self._flags, self._slack, wall, car,
-                                damage, self._blocked, self._moved, self._travel, self._pair_out)
-        pairs = sorted(map(tuple, self._pair_out[:count].tolist()))
-        return ContactReport(wall=wall, car=car, damage=damage, pairs=pairs)
+            self.arrays_version += 1
+        return ints, floats
 
     def _take_space(self) -> None:
         """Hold a barrier space from the track's pool (built if none is free) until reset()."""
@@ -389,6 +412,7 @@ class ContactSolver:
         codes = np.concatenate([np.arange(n), -1 - np.arange(len(self._mat_bodies))]).astype(np.int64)
         order = np.argsort(keys, kind="stable")
         self._id_keys, self._id_codes = keys[order], codes[order]
+        self.arrays_version += 1
         self._code_of = dict(zip(keys.tolist(), codes.tolist()))
         self._refresh_slots()
 

@@ -119,9 +119,16 @@ class World:
             self._contact_cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
             self._stepper_serial = mod.advance_until_near
             self._stepper = mod.advance_until_near_parallel if parallel else mod.advance_until_near
+            # finish_tick's: one response's flags and damage, the tick's car pairs and count
+            self._hits = (np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n))
+            self._pairs_tick = np.zeros((16, 2), dtype=np.int64)
+            self._pair_count = np.zeros(1, dtype=np.int64)
+            self._no_arbiters = (np.zeros(0, dtype=np.int64), np.zeros(0))
+            self._set_contact_table()
         self.tick_args: tuple | None = None
         """`world_tick.step_world`'s arguments after (u, nsub) (contact worlds with serial
         stepping; else None): what a compiled caller such as the SCR server passes."""
+        self._args = None
         self._set_tick_args()
         self.reset()
 
@@ -309,39 +316,44 @@ class World:
 
     def finish_tick(self, u: np.ndarray, nsub: int, k: int) -> None:
         """Complete a tick that the compiled stepper (`world_tick.step_world`, or the sub-step
-        loop) left after sub-step k with something near (self._near[0] > 0): the contact solver
-        resolves it, and the loop goes on to sub-step nsub; contact flags, pairs and damage of
-        the tick, then race positions. With nothing near (the usual tick) only the pairs are
-        cleared. u: the (N, 5) controls of the tick, already checked."""
+        loop) left after sub-step k with something near (self._near[0] != 0): the pymunk narrow
+        phase (`ContactSolver.narrow`), then `world_tick.finish_contact` responds and goes on to
+        the next sub-step where something is near, until the tick is done (contact flags, pairs
+        and damage of the tick, race positions). With nothing near (the usual tick) only the
+        pairs are cleared. u: the (N, 5) controls of the tick, already checked."""
         near = self._near
         if near[0] == 0:
             if self.contact_pairs:
                 self.contact_pairs = []
             return
-        st, solver = self.state, self._solver
-        wall, car = self.contact_wall, self.contact_car      # filled in place, no allocation
-        pairs: list[tuple[int, int]] = []
-        cols, piece = self._contact_cols, self._piece_i
-        while True:       # resolve after sub-step k, then sub-steps on to the next near one
-            # the broad phase found cars near on this very state (near[0] > 0): no second run
-            rep = (solver.resolve_flagged if near[0] > 0 else solver.resolve)(*cols, piece, DT)
-            hit_w, hit_c = np.asarray(rep.wall, dtype=bool), np.asarray(rep.car, dtype=bool)
-            if hit_w.any() or hit_c.any():
-                wall |= hit_w
-                car |= hit_c
-                pairs.extend(tuple(p) for p in rep.pairs)
-                if self.damage_on:
-                    kernel.add_damage(st, self._cp, np.asarray(rep.damage, dtype=np.float64))
-                kernel.refresh(st, self._cp, self._pt, self._surf, self._tsc, True)
-            if k >= nsub:
+        solver, cols, piece = self._solver, self._contact_cols, self._piece_i
+        walk = self._stepper is self._stepper_serial     # finish_contact runs the sub-steps
+        self._pair_count[0] = 0
+        no_arbiters = self._no_arbiters
+        while True:
+            if near[0] < 0:                  # the pair list overflowed: grown, broad phase again
+                near[0] = solver.broad_phase(cols[0], cols[1], cols[2], piece)
+                self._set_tick_args()
+            ints, floats = no_arbiters
+            respond = near[0] > 0
+            if respond:
+                ints, floats = solver.narrow(cols[0], cols[1], cols[2], DT)
+                if (solver.arrays_version != self._contact_version
+                        or self._pair_count[0] + solver.respond_arrays()[6].shape[0] > self._pairs_tick.shape[0]):
+                    self._set_contact_table()
+            k = world_tick.finish_contact(ints, floats, respond, k, nsub, u, self.state, self._snap,
+                                          self._tick_table, _W0, self._contact_table, DT,
+                                          self.fuel_on, self.damage_on, walk)
+            if k == world_tick.TICK_DONE:
                 break
-            k = self._contact_steps(u, k, nsub)
-            if near[0] == 0:
-                break
-        self.contact_pairs = pairs
-        self._set_tick_args()        # resolve() may have replaced the broad phase's arrays
-        if self.n_cars > 1:
-            self._update_race_pos()
+            if not walk:                     # the threaded stepper, from Python
+                k = self._contact_steps(u, k, nsub)
+                if near[0] == 0:
+                    if self.n_cars > 1:
+                        self._update_race_pos()
+                    break
+        m = int(self._pair_count[0])
+        self.contact_pairs = list(map(tuple, self._pairs_tick[:m].tolist())) if m else []
 
     def _contact_steps(self, u: np.ndarray, k: int, nsub: int) -> int:
         """Sub-steps k.. up to the next one after which something is near (see finish_tick)."""
@@ -352,20 +364,39 @@ class World:
                              self._path, self._turn)
 
     def _set_tick_args(self) -> None:
-        """(Re)build `tick_args`: a new tuple only when the contact solver replaced its arrays."""
-        if self._solver is None or self._stepper is not self._stepper_serial:
+        """(Re)build the World's address table (`world_tick.WORLD_TABLE`) when the contact
+        solver replaced one of its arrays, and `tick_args` (serial stepping only: what a
+        compiled caller such as the SCR server passes)."""
+        if self._solver is None:
             return
         bp = self._solver.broad_phase_args
-        if self.tick_args is not None and self.tick_args[15] is bp:
+        if self._args is not None and self._args[15] is bp:
             return
         cols = self._contact_cols
-        self.tick_args = (self.state, self._cp, self._curve_w, self._curve_t, self._pt, self._surf,
-                          self._tsc, DT, self.fuel_on, self.track.length, self._info, cols[0], cols[1],
-                          cols[2], self._piece_i, bp, self._near, self._snap, self._path, self._turn,
-                          self.contact_wall, self.contact_car, self.race_pos)
-        self._tick_table = address_table(world_tick.world_table_arrays(self.tick_args),
+        self._args = (self.state, self._cp, self._curve_w, self._curve_t, self._pt, self._surf,
+                      self._tsc, DT, self.fuel_on, self.track.length, self._info, cols[0], cols[1],
+                      cols[2], self._piece_i, bp, self._near, self._snap, self._path, self._turn,
+                      self.contact_wall, self.contact_car, self.race_pos)
+        self._tick_table = address_table(world_tick.world_table_arrays(self._args),
                                          world_tick.WORLD_TABLE)
+        if self._stepper is self._stepper_serial:
+            self.tick_args = self._args
         self._u_tick = np.zeros((self.n_cars, 5))
+
+    def _set_contact_table(self) -> None:
+        """(Re)build `world_tick.finish_contact`'s second table (`CONTACT_TABLE`): the solver's
+        response arrays, the response scratch, the velocity columns and the tick's pairs (grown
+        to hold as many more as one response can write)."""
+        solver, cols = self._solver, self._contact_cols
+        arrays = solver.respond_arrays()
+        room = self._pair_count[0] + arrays[6].shape[0]
+        if room > self._pairs_tick.shape[0]:
+            grown = np.zeros((2 * room, 2), dtype=np.int64)
+            grown[:self._pair_count[0]] = self._pairs_tick[:self._pair_count[0]]
+            self._pairs_tick = grown
+        self._contact_version = solver.arrays_version
+        self._contact_arrays = (*arrays, *self._hits, *cols[3:6], self._pairs_tick, self._pair_count)
+        self._contact_table = address_table(self._contact_arrays, world_tick.CONTACT_TABLE)
 
     def _update_race_pos(self) -> None:
         world_tick.race_positions(self.state, self.race_pos)

@@ -12,15 +12,15 @@ import numpy as np
 
 from madsim.array_table import (b1_vector, f8_matrix, f8_vector, i1_vector, i8_matrix, i8_vector,
                                 readonly)
-from madsim.physics.contact_kernels import SNAP_COLUMNS, advance_until_near
-from madsim.physics.kernel import check_controls, slipstream
+from madsim.physics.contact_kernels import SNAP_COLUMNS, _respond_settle, advance_until_near
+from madsim.physics.kernel import add_damage, check_controls, refresh, slipstream
 from madsim.physics.layout import S_DIST, S_LAPS
 
 NONFINITE = -1
 """`step_world`'s answer when a control is not finite (nothing was changed)."""
 FIRST_CAR = np.int64(0)
 """An int64, not the literal 0: numba compiles a callee once per literal argument value, and
-`advance_until_near` (~5 s to compile) is also called with a variable (World.finish_tick)."""
+`advance_until_near` (~5 s to compile) is also called with a variable (`finish_contact`)."""
 
 
 @numba.njit(cache=True)
@@ -116,3 +116,98 @@ def step_table(u, u_tick, nsub, st, snap, t, w0, dt, fuel_on, length):
                       i8_vector(t, w0 + W_PIECE), bp, i8_vector(t, w0 + W_NEAR), snap,
                       f8_vector(t, w0 + W_PATH), f8_vector(t, w0 + W_TURN), b1_vector(t, w0 + W_WALL),
                       b1_vector(t, w0 + W_CAR), i8_vector(t, w0 + W_RACE_POS))
+
+
+# --- the rest of a tick where something is near (World.finish_tick) ------------------------------
+
+CONTACT_TABLE = (
+    ("keys", "i8", 1, "C"), ("codes", "i8", 1, "C"), ("materials", "f8", 2, "C"),
+    ("blocked", "b1", 1, "C"), ("moved", "b1", 1, "C"), ("travel", "f8", 1, "C"),
+    ("pair_out", "i8", 2, "C"),
+    ("hit_wall", "b1", 1, "C"), ("hit_car", "b1", 1, "C"), ("hit_damage", "f8", 1, "C"),
+    ("vx", "f8", 1, "C"), ("vy", "f8", 1, "C"), ("yaw_rate", "f8", 1, "C"),
+    ("pairs", "i8", 2, "C"), ("pair_count", "i8", 1, "C"),
+)
+"""The rows of the address table `finish_contact` reads besides `WORLD_TABLE`'s: the contact
+solver's response arrays (`ContactSolver.respond_arrays`), one response's flags and damage, the
+global velocity and yaw-rate columns of the state, and the tick's car pairs (M, 2) with their
+count."""
+(C_KEYS, C_CODES, C_MAT, C_BLOCKED, C_MOVED, C_TRAVEL, C_PAIR_OUT, C_HIT_WALL, C_HIT_CAR,
+ C_HIT_DAMAGE, C_VX, C_VY, C_YAW_RATE, C_PAIRS, C_PAIR_COUNT) = (
+    np.int64(k) for k in range(len(CONTACT_TABLE)))
+TICK_DONE = -1
+"""`finish_contact`'s answer when the tick is complete."""
+
+
+@numba.njit(cache=True, error_model="numpy")
+def finish_contact(ints, floats, respond, k, nsub, u, st, snap, t, w0, c, dt, fuel_on, damage_on,
+                   walk):
+    """The rest of a tick after sub-step k where the broad phase found something near: when
+    `respond`, the contact response to pymunk's arbiters (ints, floats: `ContactSolver.narrow`)
+    by `_respond_settle`, then, if a car was hit, its flags or-ed into the tick's, its car
+    pairs (sorted) appended to the tick's (table c, `CONTACT_TABLE`), its damage added
+    (`damage_on`) and the track positions refreshed; then, with `walk`, sub-steps k.. on to
+    the next one where something is near (`advance_until_near`). Returns the sub-step to
+    resolve next (near[0] != 0 there; without `walk`, the caller steps on from k itself), or
+    TICK_DONE with race positions updated. World arrays at rows w0.. of table t (`WORLD_TABLE`);
+    u: the tick's controls; st, snap: the state and its whole-tick scratch."""
+    n = st.shape[0]
+    x, y, yaw = f8_vector(t, w0 + W_X), f8_vector(t, w0 + W_Y), f8_vector(t, w0 + W_YAW)
+    piece, near = i8_vector(t, w0 + W_PIECE), i8_vector(t, w0 + W_NEAR)
+    cp, pt = f8_matrix(t, w0 + W_CP), f8_matrix(t, w0 + W_PT)
+    surf, tsc = f8_matrix(t, w0 + W_SURF), f8_vector(t, w0 + W_TSC)
+    bp = (readonly(f8_matrix(t, w0 + W_BP_GEO)), f8_matrix(t, w0 + W_BP_BAR), f8_matrix(t, w0 + W_BP_CARS),
+          f8_vector(t, w0 + W_BP_PRM), f8_matrix(t, w0 + W_BP_WALL), f8_matrix(t, w0 + W_BP_VREF),
+          i8_matrix(t, w0 + W_BP_PAIRS), i8_vector(t, w0 + W_BP_META), i1_vector(t, w0 + W_BP_FLAGS),
+          f8_vector(t, w0 + W_BP_SLACK))
+    if respond:
+        hit_wall, hit_car = b1_vector(c, C_HIT_WALL), b1_vector(c, C_HIT_CAR)
+        damage, pair_out = f8_vector(c, C_HIT_DAMAGE), i8_matrix(c, C_PAIR_OUT)
+        for i in range(n):
+            hit_wall[i] = False
+            hit_car[i] = False
+            damage[i] = 0.0
+        count = _respond_settle(ints, floats, i8_vector(c, C_KEYS), i8_vector(c, C_CODES), x, y, yaw,
+                                f8_vector(c, C_VX), f8_vector(c, C_VY), f8_vector(c, C_YAW_RATE), piece,
+                                bp[2], f8_matrix(c, C_MAT), f8_matrix(t, w0 + W_BP_GEO), bp[1], bp[3],
+                                bp[6], bp[7], bp[8],
+                                bp[9], hit_wall, hit_car, damage, b1_vector(c, C_BLOCKED),
+                                b1_vector(c, C_MOVED), f8_vector(c, C_TRAVEL), pair_out)
+        hit = False
+        for i in range(n):
+            hit = hit or hit_wall[i] or hit_car[i]
+        if hit:
+            wall, car = b1_vector(t, w0 + W_WALL), b1_vector(t, w0 + W_CAR)
+            for i in range(n):
+                wall[i] = wall[i] or hit_wall[i]
+                car[i] = car[i] or hit_car[i]
+            _append_sorted(pair_out, count, i8_matrix(c, C_PAIRS), i8_vector(c, C_PAIR_COUNT))
+            if damage_on:
+                add_damage(st, cp, damage)
+            refresh(st, cp, pt, surf, tsc, True)
+    if k < nsub:
+        if not walk:
+            return k
+        k = advance_until_near(st, cp, f8_matrix(t, w0 + W_CURVE_W), f8_matrix(t, w0 + W_CURVE_T), pt,
+                               surf, tsc, u, k, nsub, dt, fuel_on, x, y, yaw, piece, bp, near, snap,
+                               f8_vector(t, w0 + W_PATH), f8_vector(t, w0 + W_TURN))
+        if near[0] != 0:
+            return k
+    if n > 1:
+        race_positions(st, i8_vector(t, w0 + W_RACE_POS))
+    return TICK_DONE
+
+
+@numba.njit(cache=True)
+def _append_sorted(pair_out, count, pairs, pair_count):
+    """Append pair_out[:count] to pairs at pair_count[0], in ascending (i, j) order (the caller
+    made room)."""
+    m = pair_count[0]
+    for r in range(count):
+        i, j = pair_out[r, 0], pair_out[r, 1]
+        s = m + r
+        while s > m and (pairs[s - 1, 0] > i or (pairs[s - 1, 0] == i and pairs[s - 1, 1] > j)):
+            pairs[s, 0], pairs[s, 1] = pairs[s - 1, 0], pairs[s - 1, 1]
+            s -= 1
+        pairs[s, 0], pairs[s, 1] = i, j
+    pair_count[0] = m + count

@@ -81,8 +81,7 @@ def test_a_fresh_process_loads_every_race_kernel_from_the_disk_cache():
     assert found["consults"] > 0 and found["server_consults"] > 0
     assert found["after_warm_up"] == []
     # the kernels that used to be compiled per process are among the cache hits
-    assert "madsim.physics.contact_kernels.advance_until_near" in found["hits"]
-    assert "madsim.physics.contact_kernels._respond_settle" in found["hits"]
+    assert "madsim.physics.world_tick.finish_contact" in found["hits"]   # the contact path's
     assert "madsim.net.server_tick.server_tick" in found["hits"]
 
 
