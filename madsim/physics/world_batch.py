@@ -97,7 +97,7 @@ class WorldBatch:
         c = self.n_slots * self.capacity
         self.offsets = np.arange(self.n_slots, dtype=np.int64) * self.capacity
         self.n_cars = np.zeros(self.n_slots, dtype=np.int64)
-        self.state = np.zeros((c, L.N_STATE), order="F")
+        self.state = np.zeros((c, L.N_STATE))     # C order: a car's state in a few cache lines
         self.controls = np.zeros((c, 5))
         self.sensors = np.zeros((c, N_VALUES))
         self.hits = np.zeros(c, dtype=bool)
@@ -333,8 +333,11 @@ class WorldBatch:
             dst[:k] = src[:k]
         rows = self.rows(slot)
         st = self.state
-        cols = [st[rows, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R)]
+        which = [L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R]
+        cols = [np.ascontiguousarray(st[rows, c]) for c in which]   # the solver's (N,) arrays
         rep = solver.resolve(*cols, self._piece[rows], DT)
+        for c, col in zip(which, cols):
+            st[rows, c] = col
         hit_w, hit_c = np.asarray(rep.wall, dtype=bool), np.asarray(rep.car, dtype=bool)
         if hit_w.any() or hit_c.any():
             self.hits[rows] |= hit_w | hit_c
