@@ -32,6 +32,7 @@ import numpy as np
 from madsim.cars.spec import CarSpec
 from madsim.physics import kernel
 from madsim.physics import layout as L
+from madsim.physics import world_tick
 from madsim.physics.sensors import (
     N_VALUES,
     O_TPOS,
@@ -326,27 +327,31 @@ class WorldBatch:
         self.sense(mask)
 
     def _resolve(self, slot: int) -> None:
-        """World.finish_tick's contact resolve for one slot."""
+        """The contact response for one slot after the broad phase found it near (the pymunk
+        narrow phase, then `world_tick.respond_tick` as in World.finish_tick)."""
         solver = self._solver[slot] or self._attach(slot)
         for src, dst in zip(self._caches(slot), solver.broad_phase_args[_SOLVER_CONSTS:]):
             k = min(src.shape[0], dst.shape[0])
             dst[:k] = src[:k]
         rows = self.rows(slot)
-        st = self.state
         which = [L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R]
-        cols = [np.ascontiguousarray(st[rows, c]) for c in which]   # the solver's (N,) arrays
-        rep = solver.resolve(*cols, self._piece[rows], DT)
-        for c, col in zip(which, cols):
-            st[rows, c] = col
-        hit_w, hit_c = np.asarray(rep.wall, dtype=bool), np.asarray(rep.car, dtype=bool)
-        if hit_w.any() or hit_c.any():
-            self.hits[rows] |= hit_w | hit_c
-            self.contact_pairs[slot].extend(tuple(p) for p in rep.pairs)
-            if self.damage:
-                kernel.add_damage(st[rows], self._cp[rows], np.asarray(rep.damage, dtype=np.float64))
+        x, y, yaw, vx, vy, w = (np.ascontiguousarray(self.state[rows, c]) for c in which)
+        piece = self._piece[rows]
+        if solver.broad_phase(x, y, yaw, piece) > 0:
+            ints, floats = solver.narrow(x, y, yaw, DT)
+            keys, codes, mat, blocked, moved, travel, pair_out = solver.respond_arrays()
+            n = x.shape[0]
+            scratch = (np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n))
+            tick_pairs, count = np.zeros_like(pair_out), np.zeros(1, dtype=np.int64)
+            hits = self.hits[rows]
             t = int(self._track[slot])
             pt, surf, tsc = self._tables[t][:3]
-            kernel.refresh(st[rows], self._cp[rows], pt, surf, tsc, True)
+            geo, bar, cars, prm, _, _, bp_pairs, meta, flags, slack = solver.broad_phase_args
+            world_tick.respond_tick(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, geo, bar,
+                                    cars, prm, bp_pairs, meta, flags, slack, mat, blocked, moved,
+                                    travel, pair_out, *scratch, self.state[rows], self._cp[rows],
+                                    pt, surf, tsc, self.damage, hits, hits, tick_pairs, count)
+            self.contact_pairs[slot].extend(map(tuple, tick_pairs[:count[0]].tolist()))
         caches = solver.broad_phase_args[_SOLVER_CONSTS:]
         pairs = caches[2]                       # resolve may have grown its pair list
         if pairs.shape[0] > self._pairs.shape[1]:

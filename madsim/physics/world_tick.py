@@ -14,7 +14,7 @@ from madsim.array_table import (b1_vector, f8_matrix, f8_vector, i1_vector, i8_m
                                 readonly)
 from madsim.physics.contact_kernels import SNAP_COLUMNS, _respond_settle, advance_until_near
 from madsim.physics.kernel import add_damage, check_controls, refresh, slipstream
-from madsim.physics.layout import S_DIST, S_LAPS
+from madsim.physics.layout import S_DIST, S_LAPS, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
 
 NONFINITE = -1
 """`step_world`'s answer when a control is not finite (nothing was changed)."""
@@ -144,9 +144,8 @@ def finish_contact(ints, floats, respond, k, nsub, u, st, snap, t, w0, c, dt, fu
                    walk):
     """The rest of a tick after sub-step k where the broad phase found something near: when
     `respond`, the contact response to pymunk's arbiters (ints, floats: `ContactSolver.narrow`)
-    by `_respond_settle`, then, if a car was hit, its flags or-ed into the tick's, its car
-    pairs (sorted) appended to the tick's (table c, `CONTACT_TABLE`), its damage added
-    (`damage_on`) and the track positions refreshed; then, with `walk`, sub-steps k.. on to
+    with the tick's flags, pairs (table c, `CONTACT_TABLE`) and damage (`respond_tick`); then,
+    with `walk`, sub-steps k.. on to
     the next one where something is near (`advance_until_near`). Returns the sub-step to
     resolve next (near[0] != 0 there; without `walk`, the caller steps on from k itself), or
     TICK_DONE with race positions updated. World arrays at rows w0.. of table t (`WORLD_TABLE`);
@@ -161,30 +160,14 @@ def finish_contact(ints, floats, respond, k, nsub, u, st, snap, t, w0, c, dt, fu
           i8_matrix(t, w0 + W_BP_PAIRS), i8_vector(t, w0 + W_BP_META), i1_vector(t, w0 + W_BP_FLAGS),
           f8_vector(t, w0 + W_BP_SLACK))
     if respond:
-        hit_wall, hit_car = b1_vector(c, C_HIT_WALL), b1_vector(c, C_HIT_CAR)
-        damage, pair_out = f8_vector(c, C_HIT_DAMAGE), i8_matrix(c, C_PAIR_OUT)
-        for i in range(n):
-            hit_wall[i] = False
-            hit_car[i] = False
-            damage[i] = 0.0
-        count = _respond_settle(ints, floats, i8_vector(c, C_KEYS), i8_vector(c, C_CODES), x, y, yaw,
-                                f8_vector(c, C_VX), f8_vector(c, C_VY), f8_vector(c, C_YAW_RATE), piece,
-                                bp[2], f8_matrix(c, C_MAT), f8_matrix(t, w0 + W_BP_GEO), bp[1], bp[3],
-                                bp[6], bp[7], bp[8],
-                                bp[9], hit_wall, hit_car, damage, b1_vector(c, C_BLOCKED),
-                                b1_vector(c, C_MOVED), f8_vector(c, C_TRAVEL), pair_out)
-        hit = False
-        for i in range(n):
-            hit = hit or hit_wall[i] or hit_car[i]
-        if hit:
-            wall, car = b1_vector(t, w0 + W_WALL), b1_vector(t, w0 + W_CAR)
-            for i in range(n):
-                wall[i] = wall[i] or hit_wall[i]
-                car[i] = car[i] or hit_car[i]
-            _append_sorted(pair_out, count, i8_matrix(c, C_PAIRS), i8_vector(c, C_PAIR_COUNT))
-            if damage_on:
-                add_damage(st, cp, damage)
-            refresh(st, cp, pt, surf, tsc, True)
+        respond_tick(ints, floats, i8_vector(c, C_KEYS), i8_vector(c, C_CODES), x, y, yaw,
+                     f8_vector(c, C_VX), f8_vector(c, C_VY), f8_vector(c, C_YAW_RATE), piece,
+                     f8_matrix(t, w0 + W_BP_GEO), bp[1], bp[2], bp[3], bp[6], bp[7], bp[8], bp[9],
+                     f8_matrix(c, C_MAT), b1_vector(c, C_BLOCKED), b1_vector(c, C_MOVED),
+                     f8_vector(c, C_TRAVEL), i8_matrix(c, C_PAIR_OUT), b1_vector(c, C_HIT_WALL),
+                     b1_vector(c, C_HIT_CAR), f8_vector(c, C_HIT_DAMAGE), st, cp, pt, surf, tsc,
+                     damage_on, b1_vector(t, w0 + W_WALL), b1_vector(t, w0 + W_CAR),
+                     i8_matrix(c, C_PAIRS), i8_vector(c, C_PAIR_COUNT))
     if k < nsub:
         if not walk:
             return k
@@ -196,6 +179,42 @@ def finish_contact(ints, floats, respond, k, nsub, u, st, snap, t, w0, c, dt, fu
     if n > 1:
         race_positions(st, i8_vector(t, w0 + W_RACE_POS))
     return TICK_DONE
+
+
+@numba.njit(cache=True, error_model="numpy")
+def respond_tick(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, geo, bar, cars, prm, pairs,
+                 meta, flags, slack, mat, blocked, moved, travel, pair_out, hit_wall, hit_car, damage,
+                 st, cp, pt, surf, tsc, damage_on, wall, car, tick_pairs, pair_count):
+    """One contact response within a tick (World's and WorldBatch's): `_respond_settle` on
+    pymunk's arbiters (ints, floats: `ContactSolver.narrow`) with the solver's arrays, the poses
+    and velocities x, y, yaw, vx, vy, w (N,) written back to st's columns (a no-op where they
+    are its columns); if a car was hit, the response's flags (hit_wall, hit_car, damage:
+    scratch) or-ed into the tick's wall and car (N,), its car pairs appended to tick_pairs at
+    pair_count[0] in ascending order (the caller made room), its damage added (`damage_on`)
+    and the track positions refreshed. Returns whether a car was hit."""
+    n = st.shape[0]
+    for i in range(n):
+        hit_wall[i] = False
+        hit_car[i] = False
+        damage[i] = 0.0
+    count = _respond_settle(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, geo,
+                            bar, prm, pairs, meta, flags, slack, hit_wall, hit_car, damage, blocked,
+                            moved, travel, pair_out)
+    for i in range(n):
+        st[i, S_X], st[i, S_Y], st[i, S_YAW] = x[i], y[i], yaw[i]
+        st[i, S_VXG], st[i, S_VYG], st[i, S_R] = vx[i], vy[i], w[i]
+    hit = False
+    for i in range(n):
+        hit = hit or hit_wall[i] or hit_car[i]
+    if hit:
+        for i in range(n):
+            wall[i] = wall[i] or hit_wall[i]
+            car[i] = car[i] or hit_car[i]
+        _append_sorted(pair_out, count, tick_pairs, pair_count)
+        if damage_on:
+            add_damage(st, cp, damage)
+        refresh(st, cp, pt, surf, tsc, True)
+    return hit
 
 
 @numba.njit(cache=True)
