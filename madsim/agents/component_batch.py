@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from madsim.agents import component_kernel as ck
-from madsim.agents.action_kernel import clip_actions, fill_controls, speed_gears, take_actions
+from madsim.agents.action_kernel import (begin_actions, clip_actions, fill_controls, speed_gears,
+                                        take_actions)
 from madsim.agents.pid import (
     CTRL_STATE,
     PIDController,
@@ -209,13 +210,9 @@ class ActionMap:
                 e = slots[i]
                 noise = rngs[e].normal(0.0, self.noise_std[e], self.dim)
                 chosen[i] = self.clip(chosen[i] + noise)
-        if self.manual:
-            g = chosen[:, -1]
-            # Python's round() and np.round both round halves to even
-            self.gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self.normalised else g)
         ts = self.controller
-        take_actions(slots, chosen, self.ts, self.normalised, ts.compat, ts.low, ts.high,
-                     ts.target_speed, self.sab, ts.lane_des, ts.speed_des_kmh)
+        begin_actions(slots, chosen, self.ts, self.normalised, self.manual, ts.compat, ts.low,
+                      ts.high, ts.target_speed, self.sab, self.gear, ts.lane_des, ts.speed_des_kmh)
 
     def controls(self, slots: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Controls (m, 4: steer, accel, brake, gear) of the coming tick for slots from their

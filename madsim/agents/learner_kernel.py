@@ -51,6 +51,30 @@ def tick_controls(run, rows, flat, prev, ts, manual, sab, gear, state, params, f
 
 
 @njit(cache=True)
+def start_outcome(total, ticks, term, trunc, fired, running):
+    """A step's outcome arrays (M,) cleared before its first tick, every position running."""
+    for p in range(total.shape[0]):
+        total[p] = 0.0
+        ticks[p] = 0
+        term[p] = trunc[p] = False
+        for c in range(fired.shape[1]):
+            fired[p, c] = False
+        running[p] = p
+
+
+@njit(cache=True)
+def pack_outcome(p, total, ticks, term, trunc, terms, out):
+    """out (4 + k,) = position p's step outcome as one row: total, ticks, term, trunc (1.0 /
+    0.0), then the k reward terms (one `tolist` gives Python every number of the step)."""
+    out[0] = total[p]
+    out[1] = ticks[p]
+    out[2] = 1.0 if term[p] else 0.0
+    out[3] = 1.0 if trunc[p] else 0.0
+    for c in range(terms.shape[0]):
+        out[4 + c] = terms[c, p]
+
+
+@njit(cache=True)
 def tick_outcome(r_codes, r_par, r_state, d_codes, d_par, d_state, weights, is_trunc, running,
                  run, rows, flat, hits, track_length, prev, cur, length, collision, r_vals,
                  d_vals, first, total, terms, ticks, term, trunc, fired, u):
