@@ -201,8 +201,9 @@ class ActionMap:
         self.noise_std[e] = noise_std
         self._noisy |= noise_std > 0.0
 
-    def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
-        """Take this step's checked actions (m, dim) of slots; rngs[e]: slot e's generator."""
+    def noised(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> np.ndarray:
+        """This step's checked actions (m, dim) of slots with each slot's Gaussian noise (from
+        rngs[e], slot e's generator) added and clipped again (a copy), or `chosen` itself."""
         noisy = np.flatnonzero(self.noise_std[slots] > 0.0) if self._noisy else ()
         if len(noisy):
             chosen = chosen.copy()
@@ -210,6 +211,11 @@ class ActionMap:
                 e = slots[i]
                 noise = rngs[e].normal(0.0, self.noise_std[e], self.dim)
                 chosen[i] = self.clip(chosen[i] + noise)
+        return chosen
+
+    def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
+        """Take this step's checked actions (m, dim) of slots; rngs[e]: slot e's generator."""
+        chosen = self.noised(slots, chosen, rngs)
         ts = self.controller
         begin_actions(slots, chosen, self.ts, self.normalised, self.manual, ts.compat, ts.low,
                       ts.high, ts.target_speed, self.sab, self.gear, ts.lane_des, ts.speed_des_kmh)

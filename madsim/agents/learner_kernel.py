@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from madsim.agents.action_kernel import fill_controls
+from madsim.agents.action_kernel import begin_actions, fill_controls
 from madsim.agents.component_kernel import evaluate
 from madsim.physics.sensors import N_VALUES
 
@@ -63,15 +63,13 @@ def start_outcome(total, ticks, term, trunc, fired, running):
 
 
 @njit(cache=True)
-def pack_outcome(p, total, ticks, term, trunc, terms, out):
-    """out (4 + k,) = position p's step outcome as one row: total, ticks, term, trunc (1.0 /
-    0.0), then the k reward terms (one `tolist` gives Python every number of the step)."""
-    out[0] = total[p]
-    out[1] = ticks[p]
-    out[2] = 1.0 if term[p] else 0.0
-    out[3] = 1.0 if trunc[p] else 0.0
-    for c in range(terms.shape[0]):
-        out[4 + c] = terms[c, p]
+def begin_step(slots, chosen, ts, normalised, manual, compat, low, high, target_speed, sab, gear,
+               lane_des, speed_des_kmh, total, ticks, term, trunc, fired, running):
+    """A step's start in one call: the checked (and noised) actions (m, dim) of slots taken
+    (`action_kernel.begin_actions`) and the outcome arrays cleared (`start_outcome`)."""
+    begin_actions(slots, chosen, ts, normalised, manual, compat, low, high, target_speed, sab,
+                  gear, lane_des, speed_des_kmh)
+    start_outcome(total, ticks, term, trunc, fired, running)
 
 
 @njit(cache=True)

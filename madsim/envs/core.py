@@ -47,8 +47,8 @@ from madsim.agents.component_batch import ActionMap, ComponentBatch
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
-from madsim.agents.learner_kernel import (LearnerScratch, pack_outcome, start_outcome, tally,
-                                          tick_controls, tick_outcome)
+from madsim.agents.learner_kernel import (LearnerScratch, begin_step, tally, tick_controls,
+                                          tick_outcome)
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController, speed_gear
 from madsim.agents.sensor_row import SensorRow
@@ -150,7 +150,6 @@ class _StageAgent:
         self.term, self.trunc = np.zeros(1, dtype=bool), np.zeros(1, dtype=bool)
         self.fired = np.zeros((1, kd), dtype=bool)
         self.running = np.zeros(1, dtype=np.int64)
-        self.packed = np.zeros(4 + k)        # the step's outcome as one row (pack_outcome)
         self.chosen = np.zeros((1, self.dim))  # the compiled step's checked action
         self.action: np.ndarray | None = None
         self.ended: tuple[str, ...] = ()      # an end that is not a done: ServerEnded, EpisodeEnd
@@ -185,8 +184,12 @@ class _StageAgent:
         """Take this step's (checked) action: add noise, map to controls / PID targets; clear
         the step's outcome."""
         self.action = action
-        self.actions.begin(_SLOT0, action[None, :], (rng,))
-        start_outcome(self.total, self.ticks, self.term, self.trunc, self.fired, self.running)
+        a = self.actions
+        ts = a.controller
+        begin_step(_SLOT0, a.noised(_SLOT0, action[None, :], (rng,)), a.ts, a.normalised, a.manual,
+                   ts.compat, ts.low, ts.high, ts.target_speed, a.sab, a.gear, ts.lane_des,
+                   ts.speed_des_kmh, self.total, self.ticks, self.term, self.trunc, self.fired,
+                   self.running)
         self.ended = ()
 
     def fill(self, flat: np.ndarray, u: np.ndarray) -> None:
@@ -229,18 +232,16 @@ class _StageAgent:
             u[k, :3] = _STOP
             u[k, 4] = 0.0
 
-    def result(self, packed: bool = False) -> tuple[float, dict, bool, bool, tuple[str, ...], int]:
+    def result(self) -> tuple[float, dict, bool, bool, tuple[str, ...], int]:
         """(reward, reward terms by name, terminated, truncated, dones fired, ticks) of the
-        step; packed: `pack_outcome` has already written them (the compiled step's end)."""
-        if not packed:
-            pack_outcome(0, self.total, self.ticks, self.term, self.trunc, self.terms, self.packed)
-        v = self.packed.tolist()
-        ticks = int(v[1])
-        term, trunc = v[2] != 0.0, v[3] != 0.0
+        step."""
+        ticks = int(self.ticks[0])
+        terms = dict(zip(self.reward_names, self.terms[:, 0].tolist())) if ticks else {}
+        term, trunc = bool(self.term[0]), bool(self.trunc[0])
         fired = self.ended
         if (term or trunc) and not fired:
             fired = tuple(n for n, f in zip(self.done_names, self.fired[0].tolist()) if f)
-        return v[0], dict(zip(self.reward_names, v[4:])) if ticks else {}, term, trunc, fired, ticks
+        return float(self.total[0]), terms, term, trunc, fired, ticks
 
     def reset(self, k: int, row: np.ndarray, track_length: float) -> None:
         """Start an episode with the agent's car in row k from its first sensor row (79,) on a
@@ -605,7 +606,7 @@ class MadrasCore:
             else:                                   # OUTCOME
                 tick.status[1] = agent.outcome(tick.flat, tick.hits, self.controls, k == 0)
             stage = tick.run(stage + 1, k, ticks)
-        r, terms, term, trunc, fired, n = agent.result(packed=True)
+        r, terms, term, trunc, fired, n = agent.result()
         self.tick += n                   # one learner: its ticks are the step's ticks
         if term or trunc:
             self.live = []

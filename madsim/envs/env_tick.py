@@ -1,12 +1,12 @@
 """A one-learner env step as one compiled call: the action checked, clipped and taken, then for
 each tick of the step the learner's controls -> the World advanced one tick -> every car's
-sensors -> the learner's rewards and dones, then its observation and the step's outcome as one
-row. The Python around it only hands the action in and the results out.
+sensors -> the learner's rewards and dones, then its observation. The Python around it only
+hands the action in and the results out.
 
 The stages are the kernels every other door runs (`action_kernel.clip_actions` and
-`begin_actions`, `learner_kernel.start_outcome`, `tick_controls` and `tick_outcome`,
-`world_tick.step_world`, `sensors.sensor_kernel`, `focus_due` and `focus_kernel`,
-`learner_kernel.observe_rows` and `pack_outcome`), in the order `MadrasCore.step` calls them
+`learner_kernel.begin_step`, `tick_controls` and `tick_outcome`, `world_tick.step_world`,
+`sensors.sensor_kernel`, `focus_due` and `focus_kernel`, `learner_kernel.observe_rows`), in the
+order `MadrasCore.step` calls them
 one by one, so a step gives the same bits either way (tests/envs/test_env_tick.py). Whatever a
 stage cannot finish compiled stops the call at that stage and is done by `MadrasCore`'s Python
 path of the same stage, which then goes on: the traffic cars' controls (`TrafficFleet.act`),
@@ -22,9 +22,8 @@ import numba
 import numpy as np
 
 from madsim.facts import SUBSTEPS_PER_TICK as SUBSTEPS
-from madsim.agents.action_kernel import begin_actions, clip_actions
-from madsim.agents.learner_kernel import (observe_rows, pack_outcome, start_outcome, tick_controls,
-                                          tick_outcome)
+from madsim.agents.action_kernel import clip_actions
+from madsim.agents.learner_kernel import begin_step, observe_rows, tick_controls, tick_outcome
 from madsim.agents.traffic_kernel import traffic_tick
 from madsim.array_table import (address_table, b1_matrix, b1_vector, f4_matrix, f8_matrix,
                                 f8_tensor, f8_vector, i8_vector)
@@ -42,7 +41,7 @@ NO_TRAFFIC, COMPILED_TRAFFIC, PYTHON_TRAFFIC = range(3)
 # The arrays `env_tick` reads, in the order of its address table (`madsim.array_table`): name,
 # dtype, dimensions, memory order. From row W0 the World's (`world_tick.WORLD_TABLE`), from row S0
 # the sensors' (`sensors.SENSOR_TABLE`); then the learner's: the action handed in, its checked
-# copy, the Box, the outcome row, its action map, component batches and step arrays
+# copy, the Box, its action map, component batches and step arrays
 # (madsim.envs.core), its observation's, the traffic fleet's.
 _OWN_FIRST = (("controls", "f8", 2, "C"), ("u_tick", "f8", 2, "C"), ("steps", "i8", 1, "C"),
               ("hits", "b1", 1, "C"), ("status", "i8", 1, "C"), ("flags", "i8", 1, "C"),
@@ -57,8 +56,7 @@ X_DT, X_LENGTH, X_HALF, X_RANGE, X_LANE_LOW, X_LANE_HIGH = range(6)
 limits (track position)."""
 _LEARNER = (
     ("action", "f8", 2, "C"), ("chosen", "f8", 2, "C"), ("a_low", "f8", 1, "C"),
-    ("a_high", "f8", 1, "C"), ("target_speed", "f8", 1, "C"), ("packed", "f8", 1, "C"),
-    ("slot0", "i8", 1, "C"), ("rows", "i8", 1, "C"), ("sab", "f8", 2, "C"), ("gear", "f8", 1, "C"),
+    ("a_high", "f8", 1, "C"), ("target_speed", "f8", 1, "C"), ("slot0", "i8", 1, "C"), ("rows", "i8", 1, "C"), ("sab", "f8", 2, "C"), ("gear", "f8", 1, "C"),
     ("pid_state", "f8", 2, "C"), ("pid_params", "f8", 1, "C"), ("pid_fresh", "b1", 1, "C"),
     ("lane_des", "f8", 1, "C"), ("speed_des_kmh", "f8", 1, "C"), ("prev", "f8", 2, "C"),
     ("out4", "f8", 2, "C"),
@@ -80,7 +78,7 @@ U, U_TICK, STEPS, HITS, STATUS, FLAGS, SCALARS = (
     np.int64(k) for k in range(len(_OWN_FIRST)))
 W0 = np.int64(len(_OWN_FIRST))
 S0 = np.int64(W0 + len(WORLD_TABLE))
-(ACT, CHOSEN, A_LOW, A_HIGH, TARGET_SPEED, PACKED, SLOT0, ROWS, SAB, GEAR, PID_STATE, PID_PARAMS,
+(ACT, CHOSEN, A_LOW, A_HIGH, TARGET_SPEED, SLOT0, ROWS, SAB, GEAR, PID_STATE, PID_PARAMS,
  PID_FRESH, LANE_DES, SPEED_DES, PREV, OUT4, R_CODES,
  R_PAR, R_STATE, D_CODES, D_PAR, D_STATE, WEIGHTS, IS_TRUNC, RUNNING, TRACK_LENGTH, CUR, LENGTH,
  COLLISION, R_VALS, D_VALS, TOTAL, TERMS, TICKS, TERM, TRUNC, FIRED, WIRE_INDEX, SCALE, LOW, HIGH,
@@ -100,7 +98,7 @@ def env_tick(first, tick0, ticks, st, snap, t):
 
     ACTION (before tick 0): the action (1, dim) clipped into [a_low, a_high] as `chosen`
       (`clip_actions`; a non-finite one stops here, status[0] = its index, nothing changed),
-      taken (`begin_actions`) and the step's outcome cleared (`start_outcome`).
+      taken and the step's outcome cleared (`begin_step`).
     CONTROLS: the learner's controls from its sensor row before the tick (`tick_controls`).
     TRAFFIC: the traffic cars' controls, compiled (`traffic_tick`) or Python's (`traffic`).
     STEP: `world_tick.step_table` (`step_world` on u_tick, the tick's copy of the controls);
@@ -112,9 +110,8 @@ def env_tick(first, tick0, ticks, st, snap, t):
     OUTCOME: the contact flags hits = wall | car, then `tick_outcome` (its answer, the learners
       still running, in status[1]); stops first when a reward or done is Python.
     NEXT: status[1] == 0 ends the step; else on to the next tick.
-    At the end the learner's observation (`observe_rows`) goes into obs (1, size) float32 and
-    its step outcome into packed (`pack_outcome`). The modes and scalars are the rows flags
-    (F_*) and scalars (X_*). It allocates nothing but the table's views."""
+    At the end the learner's observation (`observe_rows`) goes into obs (1, size) float32. The
+    modes and scalars are the rows flags (F_*) and scalars (X_*). It allocates nothing but the table's views."""
     flags, x = i8_vector(t, FLAGS), f8_vector(t, SCALARS)
     traffic, python, plain = flags[F_TRAFFIC], flags[F_PYTHON] != 0, flags[F_PLAIN] != 0
     ts, manual, normalise = flags[F_TS] != 0, flags[F_MANUAL] != 0, flags[F_NORMALISE] != 0
@@ -135,11 +132,10 @@ def env_tick(first, tick0, ticks, st, snap, t):
         if bad >= 0:
             status[0] = bad
             return ACTION
-        begin_actions(slot0, chosen, ts, flags[F_ACT_NORMALISED] != 0, manual,
-                      flags[F_COMPAT] != 0, x[X_LANE_LOW], x[X_LANE_HIGH],
-                      f8_vector(t, TARGET_SPEED), f8_matrix(t, SAB), f8_vector(t, GEAR),
-                      f8_vector(t, LANE_DES), f8_vector(t, SPEED_DES))
-        start_outcome(total, tick_counts, term, trunc, fired, running)
+        begin_step(slot0, chosen, ts, flags[F_ACT_NORMALISED] != 0, manual, flags[F_COMPAT] != 0,
+                   x[X_LANE_LOW], x[X_LANE_HIGH], f8_vector(t, TARGET_SPEED), f8_matrix(t, SAB),
+                   f8_vector(t, GEAR), f8_vector(t, LANE_DES), f8_vector(t, SPEED_DES), total,
+                   tick_counts, term, trunc, fired, running)
     for k in range(tick0, ticks):
         status[0] = k
         if stage <= CONTROLS:
@@ -179,7 +175,6 @@ def env_tick(first, tick0, ticks, st, snap, t):
     observe_rows(flat, rows, i8_vector(t, WIRE_INDEX), f8_vector(t, SCALE), f8_vector(t, LOW),
                  f8_vector(t, HIGH), normalise, f8_vector(t, GAIN), f8_vector(t, OFFSET),
                  f4_matrix(t, OBS), slot0)
-    pack_outcome(0, total, tick_counts, term, trunc, terms, f8_vector(t, PACKED))
     return DONE
 
 
@@ -249,7 +244,7 @@ class EnvTick:
                   *world_table_arrays(w),
                   *sensor_table_arrays(self.suite, self.cars, self.due, self.flat, self._scratch),
                   self.action, ag.chosen, ag.actions.low, ag.actions.high, ctl.target_speed,
-                  ag.packed, self._slot0, ag.rows, ag.actions.sab, ag.actions.gear, ctl.state,
+                  self._slot0, ag.rows, ag.actions.sab, ag.actions.gear, ctl.state,
                   ctl.params, ctl.fresh, ctl.lane_des, ctl.speed_des_kmh, sc.prev, sc.controls,
                   rw.codes, rw.par, rw.state, dn.codes, dn.par, dn.state, ag.weights, ag.is_trunc,
                   ag.running, ag.track_length, sc.cur, sc.length, sc.collision, sc.r_vals,
