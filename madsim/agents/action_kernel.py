@@ -1,7 +1,8 @@
 """Compiled action mapping of the learners of a batch (madsim.agents.component_batch.ActionMap).
 
 `take_actions`: this step's checked (and noised) actions (m, dim) of slots (m,) -> S-A-B
-controls `sab` (n, 3) or T-S targets `lane_des`, `speed_des_kmh` (n,). `fill_controls`: the
+controls `sab` (n, 3) or T-S targets `lane_des`, `speed_des_kmh` (n,); `begin_actions`: the
+same after the manual gear from the last component. `fill_controls`: the
 controls (m, 4: steer, accel, brake, gear) of the coming tick from the latest sensor rows
 (m, 79): the T-S controller (madsim.agents.pid.ts_act) or the held S-A-B controls, the gear from
 `gear` (manual) or snakeoil's gearbox. `clip_actions`: actions into the Box, finiteness checked.
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from madsim.agents.pid import desired_lane_speed, speed_gear, ts_act
@@ -31,6 +33,20 @@ def take_actions(slots, chosen, ts, normalised, compat, low, high, target_speed,
             sab[e, 2] = (chosen[i, 2] + 1.0) / 2.0
         else:
             sab[e, 0], sab[e, 1], sab[e, 2] = chosen[i, 0], chosen[i, 1], chosen[i, 2]
+
+
+@njit(cache=True)
+def begin_actions(slots, chosen, ts, normalised, manual, compat, low, high, target_speed, sab, gear,
+                  lane_des, speed_des_kmh):
+    """`take_actions` after gear[slots] = the last component (manual): round(-1 + 3.5 (g + 1))
+    normalised, else g, halves to even (np.round's rint)."""
+    if manual:
+        last = chosen.shape[1] - 1
+        for i in range(slots.shape[0]):
+            g = chosen[i, last]
+            gear[slots[i]] = np.round(-1.0 + 3.5 * (g + 1.0) if normalised else g)
+    take_actions(slots, chosen, ts, normalised, compat, low, high, target_speed, sab, lane_des,
+                 speed_des_kmh)
 
 
 @njit(cache=True)

@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from madsim.agents import component_kernel as ck
-from madsim.agents.action_kernel import clip_actions, fill_controls, speed_gears, take_actions
+from madsim.agents.action_kernel import (begin_actions, clip_actions, fill_controls, speed_gears,
+                                        take_actions)
 from madsim.agents.pid import (
     CTRL_STATE,
     PIDController,
@@ -200,8 +201,9 @@ class ActionMap:
         self.noise_std[e] = noise_std
         self._noisy |= noise_std > 0.0
 
-    def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
-        """Take this step's checked actions (m, dim) of slots; rngs[e]: slot e's generator."""
+    def noised(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> np.ndarray:
+        """This step's checked actions (m, dim) of slots with each slot's Gaussian noise (from
+        rngs[e], slot e's generator) added and clipped again (a copy), or `chosen` itself."""
         noisy = np.flatnonzero(self.noise_std[slots] > 0.0) if self._noisy else ()
         if len(noisy):
             chosen = chosen.copy()
@@ -209,13 +211,14 @@ class ActionMap:
                 e = slots[i]
                 noise = rngs[e].normal(0.0, self.noise_std[e], self.dim)
                 chosen[i] = self.clip(chosen[i] + noise)
-        if self.manual:
-            g = chosen[:, -1]
-            # Python's round() and np.round both round halves to even
-            self.gear[slots] = np.round(-1.0 + 3.5 * (g + 1.0) if self.normalised else g)
+        return chosen
+
+    def begin(self, slots: np.ndarray, chosen: np.ndarray, rngs) -> None:
+        """Take this step's checked actions (m, dim) of slots; rngs[e]: slot e's generator."""
+        chosen = self.noised(slots, chosen, rngs)
         ts = self.controller
-        take_actions(slots, chosen, self.ts, self.normalised, ts.compat, ts.low, ts.high,
-                     ts.target_speed, self.sab, ts.lane_des, ts.speed_des_kmh)
+        begin_actions(slots, chosen, self.ts, self.normalised, self.manual, ts.compat, ts.low,
+                      ts.high, ts.target_speed, self.sab, self.gear, ts.lane_des, ts.speed_des_kmh)
 
     def controls(self, slots: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Controls (m, 4: steer, accel, brake, gear) of the coming tick for slots from their

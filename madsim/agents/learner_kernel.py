@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from madsim.agents.action_kernel import fill_controls
+from madsim.agents.action_kernel import begin_actions, fill_controls
 from madsim.agents.component_kernel import evaluate
 from madsim.physics.sensors import N_VALUES
 
@@ -48,6 +48,28 @@ def tick_controls(run, rows, flat, prev, ts, manual, sab, gear, state, params, f
     for i in range(m):
         for j in range(4):
             u[rows[i], j] = out[i, j]
+
+
+@njit(cache=True)
+def start_outcome(total, ticks, term, trunc, fired, running):
+    """A step's outcome arrays (M,) cleared before its first tick, every position running."""
+    for p in range(total.shape[0]):
+        total[p] = 0.0
+        ticks[p] = 0
+        term[p] = trunc[p] = False
+        for c in range(fired.shape[1]):
+            fired[p, c] = False
+        running[p] = p
+
+
+@njit(cache=True)
+def begin_step(slots, chosen, ts, normalised, manual, compat, low, high, target_speed, sab, gear,
+               lane_des, speed_des_kmh, total, ticks, term, trunc, fired, running):
+    """A step's start in one call: the checked (and noised) actions (m, dim) of slots taken
+    (`action_kernel.begin_actions`) and the outcome arrays cleared (`start_outcome`)."""
+    begin_actions(slots, chosen, ts, normalised, manual, compat, low, high, target_speed, sab,
+                  gear, lane_des, speed_des_kmh)
+    start_outcome(total, ticks, term, trunc, fired, running)
 
 
 @njit(cache=True)

@@ -26,9 +26,11 @@ row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`). Ever
 Each agent's action mapping, T-S controller, rewards and dones are the batch-first code
 make_vec runs over its episodes (`madsim.agents.component_batch`, `madsim.agents.learner_kernel`),
 here a batch of one per agent. With one learner on a World in this process (the usual
-MadrasEnv) a step's ticks are one compiled call (`madsim.envs.env_tick`: the same kernels in the
-same order, ~27 us a S-A-B step on a slow 2-core machine), which leaves to Python only what it
-cannot do: Python traffic behaviours, contact near a car, sensor noise, Python rewards or dones.
+MadrasEnv) a step is one compiled call from the action on (`madsim.envs.env_tick`: the same
+kernels in the same order, the action's check, clip and take included; ~13 us a S-A-B step on a
+slow 2-core machine, ~4 us of it the Python around the call), which leaves to Python only what
+it cannot do: action noise, Python traffic behaviours, contact near a car, sensor noise, Python
+rewards or dones.
 """
 
 from __future__ import annotations
@@ -45,7 +47,8 @@ from madsim.agents.component_batch import ActionMap, ComponentBatch
 from madsim.agents.comms import CommHub
 from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.dones import DoneSet
-from madsim.agents.learner_kernel import LearnerScratch, tally, tick_controls, tick_outcome
+from madsim.agents.learner_kernel import (LearnerScratch, begin_step, tally, tick_controls,
+                                          tick_outcome)
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController, speed_gear
 from madsim.agents.sensor_row import SensorRow
@@ -60,7 +63,7 @@ from madsim.envs.config import (
     action_space,
     load_config,
 )
-from madsim.envs.env_tick import CONTROLS, DONE, SENSE, STEP, TRAFFIC, EnvTick
+from madsim.envs.env_tick import ACTION, CONTROLS, DONE, SENSE, STEP, TRAFFIC, EnvTick
 from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
 from madsim.physics.sensors import O_SX, SensorFrame
 
@@ -115,6 +118,7 @@ class _StageAgent:
         s = cfg.server
         self.name = agent.name
         self.dim = space.shape[0]
+        self.shape = (self.dim,)
         self.ts = agent.action.space == "TS"
         self.noise_std = float(agent.action_noise_std)
         self.target_speed = float(agent.target_speed)
@@ -146,35 +150,46 @@ class _StageAgent:
         self.term, self.trunc = np.zeros(1, dtype=bool), np.zeros(1, dtype=bool)
         self.fired = np.zeros((1, kd), dtype=bool)
         self.running = np.zeros(1, dtype=np.int64)
+        self.chosen = np.zeros((1, self.dim))  # the compiled step's checked action
         self.action: np.ndarray | None = None
         self.ended: tuple[str, ...] = ()      # an end that is not a done: ServerEnded, EpisodeEnd
         self.frame = None                       # the frame of its observation
 
-    def check(self, action) -> np.ndarray:
-        """The action (dim,) float64 clipped into the Box; ValueError if malformed."""
+    def array(self, action) -> np.ndarray:
+        """The action as a float64 array of the Box's shape (dim,); ValueError if it is not
+        numeric or has another shape."""
         try:
             a = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError):
             raise ValueError(f"action for agent {self.name!r} is not numeric: {action!r}") from None
-        if a.shape != (self.dim,):
+        if a.shape != self.shape:
             raise ValueError(f"action for agent {self.name!r} must have shape ({self.dim},), "
                              f"got {a.shape}")
+        return a
+
+    def non_finite(self, index: int, value) -> ValueError:
+        """The error of an action whose component `index` is `value`, not finite."""
+        return ValueError(f"action for agent {self.name!r} has a non-finite value at "
+                          f"index {index}: {value}")
+
+    def check(self, action) -> np.ndarray:
+        """The action (dim,) float64 clipped into the Box; ValueError if malformed."""
+        a = self.array(action)
         clipped, bad = self.actions.check(a)
         if bad >= 0:
-            raise ValueError(f"action for agent {self.name!r} has a non-finite value at "
-                             f"index {bad}: {a[bad]}")
+            raise self.non_finite(bad, a[bad])
         return clipped
 
     def begin(self, action: np.ndarray, rng: np.random.Generator) -> None:
         """Take this step's (checked) action: add noise, map to controls / PID targets; clear
         the step's outcome."""
         self.action = action
-        self.actions.begin(_SLOT0, action[None, :], (rng,))
-        self.total[0] = 0.0
-        self.ticks[0] = 0
-        self.term[0] = self.trunc[0] = False
-        self.fired[:] = False
-        self.running[0] = 0
+        a = self.actions
+        ts = a.controller
+        begin_step(_SLOT0, a.noised(_SLOT0, action[None, :], (rng,)), a.ts, a.normalised, a.manual,
+                   ts.compat, ts.low, ts.high, ts.target_speed, a.sab, a.gear, ts.lane_des,
+                   ts.speed_des_kmh, self.total, self.ticks, self.term, self.trunc, self.fired,
+                   self.running)
         self.ended = ()
 
     def fill(self, flat: np.ndarray, u: np.ndarray) -> None:
@@ -232,6 +247,7 @@ class _StageAgent:
         """Start an episode with the agent's car in row k from its first sensor row (79,) on a
         track of length m."""
         self.rows[0] = k
+        self.ended = ()
         self.rewards.start(0, self.reward_components, track_length)
         self.dones.start(0, self.done_components, track_length)
         self.actions.start(0, row, self.target_speed, self.noise_std)
@@ -284,6 +300,7 @@ class MadrasCore:
             self._factory = default_traffic_factory()
         self._stages: dict[int, _Stage] = {}
         self.progress = 0            # episodes or steps, the curriculum's unit
+        self._count_steps = self._unit() == "steps"
         self.episode = -1            # index k of the current episode (order "fixed")
         self.resets = 0
         self.live: list[str] = []
@@ -478,6 +495,13 @@ class MadrasCore:
         for name in actions:
             if name not in self.action_spaces:
                 raise ValueError(f"action for unknown agent {name!r}; agents: {self.names}")
+        tick = self._compiled
+        if tick is not None and tick.fused:
+            name = self.live[0]
+            if name not in actions:
+                raise ValueError(f"no action for live agent {name!r}")
+            obs, reward, term, trunc, info = self.step_one(name, actions[name])
+            return {name: obs}, {name: reward}, {name: term}, {name: trunc}, {name: info}
         agents = self.stage.agents
         chosen = {}
         for name in self.live:
@@ -492,8 +516,10 @@ class MadrasCore:
         stepping = [agents[name] for name in self.live]
         for agent in stepping:
             agent.begin(chosen[agent.name], self.action_rng)
-        if self._compiled is not None:
-            return self._step_compiled(stepping[0])
+        if tick is not None:
+            name = stepping[0].name
+            obs, reward, term, trunc, info = self._step_compiled(stepping[0], CONTROLS)
+            return {name: obs}, {name: reward}, {name: term}, {name: trunc}, {name: info}
         running = stepping
         u = self.controls
         backend = self.backend
@@ -541,20 +567,36 @@ class MadrasCore:
             truncated[name] = trunc
             infos[name] = {"reward_terms": terms, "dones": fired, "ticks": ticks}
         self.live = [n for n in self.live if not (terminated[n] or truncated[n])]
-        if self._unit() == "steps":
+        if self._count_steps:
             self.progress += 1
         return obs, rewards, terminated, truncated, infos
 
-    def _step_compiled(self, agent: _StageAgent):
-        """`step`'s ticks as `EnvTick` calls (one, unless a stage is left to Python: traffic
-        controls, the contact narrow phase, sensor noise, Python rewards or dones)."""
+    def step_one(self, name: str, action):
+        """`step({name: action})` for `name`, the one learner (MadrasEnv's door), as (obs,
+        reward, terminated, truncated, info): on the fused compiled step no dict is built."""
         tick = self._compiled
-        stage, k = CONTROLS, 0
-        while True:
-            stage = tick.run(stage, k, self.ticks_per_step)
-            if stage == DONE:
-                break
+        if tick is None or not tick.fused or not self.live:
+            obs, rewards, terminated, truncated, infos = self.step({name: action})
+            return obs[name], rewards[name], terminated[name], truncated[name], infos[name]
+        # the compiled step from ACTION: the action's check, clip and take in the call
+        agent = tick.agent
+        a = action
+        if type(a) is not np.ndarray or a.dtype.kind != "f" or a.shape != agent.shape:
+            a = agent.array(action)           # anything else as check() takes it, or its error
+        tick.action_row[:] = a                # float64, as np.asarray(a, dtype=np.float64)
+        return self._step_compiled(agent, ACTION)
+
+    def _step_compiled(self, agent: _StageAgent, first: int):
+        """`step`'s ticks as `EnvTick` calls from stage `first` (one, unless a stage is left to
+        Python: traffic controls, the contact narrow phase, sensor noise, Python rewards or
+        dones): (obs, reward, terminated, truncated, info)."""
+        tick = self._compiled
+        ticks = self.ticks_per_step
+        stage = tick.run(first, 0, ticks)
+        while stage != DONE:
             k = int(tick.status[0])
+            if stage == ACTION:                      # nothing has changed
+                raise agent.non_finite(k, tick.action_row[k])
             if stage == TRAFFIC:
                 self._traffic_controls(self.frame)
             elif stage == STEP:
@@ -563,16 +605,15 @@ class MadrasCore:
                 self.backend.suite.finish_frame(tick.flat, tick.cars, tick.due)
             else:                                   # OUTCOME
                 tick.status[1] = agent.outcome(tick.flat, tick.hits, self.controls, k == 0)
-            stage += 1
-        self.tick += int(tick.status[0]) + 1
-        name = agent.name
-        r, terms, term, trunc, fired, ticks = agent.result()
+            stage = tick.run(stage + 1, k, ticks)
+        r, terms, term, trunc, fired, n = agent.result()
+        self.tick += n                   # one learner: its ticks are the step's ticks
         if term or trunc:
             self.live = []
-        if self._unit() == "steps":
+        if self._count_steps:
             self.progress += 1
-        return ({name: tick.obs[0].copy()}, {name: r}, {name: term}, {name: trunc},
-                {name: {"reward_terms": terms, "dones": fired, "ticks": ticks}})
+        return (tick.obs_row.copy(), r, term, trunc,
+                {"reward_terms": terms, "dones": fired, "ticks": n})
 
     def close(self) -> None:
         self.backend.close()

@@ -107,11 +107,10 @@ class MadrasEnv(CurriculumProgress, gymnasium.Env):
         return obs[self.agent], infos[self.agent]
 
     def step(self, action):
-        obs, rewards, terminated, truncated, infos = self.core.step({self.agent: action})
+        out = self.core.step_one(self.agent, action)
         if self.render_mode == "human":
             self._view.render(self.core.view_state())
-        a = self.agent
-        return obs[a], rewards[a], terminated[a], truncated[a], infos[a]
+        return out
 
     def render(self):
         """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""

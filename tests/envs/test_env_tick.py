@@ -107,6 +107,51 @@ def test_a_reward_written_in_python_is_called_by_the_compiled_step():
                for step in log if len(step) == 5)
 
 
+def test_manual_gear_without_noise_is_taken_in_the_compiled_call():
+    cfg = {"server": {"tracks": ["madsim-oval"], "max_steps": 80},
+           "agents": [{"gear": "manual", "action": {"normalised": True}}]}
+
+    def sab_gear(rng):
+        a = sab(rng)
+        return np.array([*a, rng.choice([-0.5714285714285714, 0.0, 0.4285714285714286])])
+
+    log, stages = compare(cfg, 90, sab_gear)
+    assert stages == {env_tick.DONE: 90}               # every step one call, from the action
+
+
+ACTIONS = [[0.1, 0.5, -1.0], (0.1, 2.0, -3.0), np.array([0.1, 0.5, -1.0], dtype=np.float32),
+           np.array([1, 1, 0]), np.arange(6.0)[::2] / 5.0, np.float64([0.1, 0.5, -1.0]),
+           np.array([0.1, 0.5, 1.5], dtype=np.float16), np.array(["0.1", "0.5", "-1"]),
+           [0.1, np.nan, -1.0], np.array([0.1, 0.5, -np.inf], dtype=np.float32), [0.1, 0.5],
+           np.zeros((1, 3)), 0.5, "abc", [0.1, None, 1.0]]
+
+
+def test_the_compiled_call_takes_and_refuses_actions_as_the_python_step_does():
+    """Each action of ACTIONS (lists, tuples, other dtypes, strided views, out of the Box,
+    non-finite, wrong shapes, not numeric) between steps of a drive: the same results, the same
+    ValueError, and a refused action changes nothing."""
+    cfg = {"server": {"max_steps": 400}, "agents": [{"action": {"normalised": True}}]}
+
+    def drive(compiled):
+        env = MadrasEnv(cfg)
+        if not compiled:
+            env.core._compiled_step = lambda: None
+        log = [env.reset(seed=3)]
+        for a in ACTIONS:
+            try:
+                log.append(env.step(a))
+            except ValueError as exc:
+                log.append(str(exc))
+            log.append(env.step(np.array([0.0, 0.6, -1.0])))
+        assert (env.core._compiled is not None) == compiled
+        return log
+
+    ref, got = drive(False), drive(True)
+    assert sum(isinstance(x, str) for x in ref) == 7
+    for i, (a, b) in enumerate(zip(ref, got)):
+        same(a if isinstance(a, str) else list(a), b if isinstance(b, str) else list(b), f"[{i}]")
+
+
 @pytest.mark.parametrize("cfg", [
     {"server": {"tick_schedule": "torcs"}, "agents": [{}]},
     {"agents": [{"observation": {"mode": "Image", "image_size": 16}}]},
