@@ -158,8 +158,10 @@ def add_serve_parser(sub) -> None:
     sv.add_argument("--host", default="127.0.0.1")
     sv.add_argument("--port", type=udp_port, default=3001)
     sv.add_argument("--laps", type=int, default=None,
-                    help="the race's laps: it ends when every car has done them; a car past them has "
-                         "finished: no more damage, slow pace (TORCS's rules; default: no end)")
+                    help="the race's laps: a car past them, or at its first crossing after another's "
+                         "finish, has finished (no more damage, slow pace, its laps stop); the race ends "
+                         "when every car has finished or a finished car crosses again (TORCS's rules; "
+                         "default: no end)")
     sv.add_argument("--mode", choices=["sync", "timeout", "realtime"], default="sync")
     sv.add_argument("--timeout-ms", type=float, default=10.0)
     sv.add_argument("--noisy", action="store_true", help="SCR sensor noise (as torcs -noisy)")

@@ -328,7 +328,7 @@ class ScrServer:
                 for c in self.cars:
                     self._send(c, P.SHUTDOWN_MESSAGE)
                 return "stopped"
-            finished = self._race_over(r.tick, r.laps, r.cars)
+            finished = self._race_over(r.tick, world, r.cars)
             if r.fast is not None and r.countdown == 0 and not finished and not self._behind \
                     and not r.python_tick:
                 status = self._compiled_ticks(r)
@@ -421,14 +421,17 @@ class ScrServer:
             self._send(c, P.RESTART_MESSAGE if c.index == restart_by else P.SHUTDOWN_MESSAGE)
         return True
 
-    def _race_over(self, tick: int, laps: list, cars: list[_Car]) -> bool:
-        """Max ticks reached, every car out, or every car still in the race done its laps."""
+    def _race_over(self, tick: int, world, cars: list[_Car]) -> bool:
+        """Max ticks reached, every car out, or TORCS's end of the race (`physics.finish`): every
+        car still in the race has finished (done its laps, or crossed the line once after
+        another car's finish), or a finished car has crossed the line again."""
         if self.max_ticks is not None and tick >= self.max_ticks:
             return True
         if not cars:
             return True
         if self.laps is not None:
-            return all(laps[c.index] > self.laps for c in cars)
+            finished = world.finished
+            return world.race_over or all(finished[c.index] for c in cars)
         return False
 
     def _take_late(self, cars: list[_Car]) -> dict[int, bytes]:

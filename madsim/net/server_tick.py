@@ -21,12 +21,12 @@ from madsim.net import protocol as P
 from madsim.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i8_vector,
                                 readonly, u1_matrix, u1_vector)
 from madsim.net.codec_kernels import decode_stock, encode_rows
-from madsim.physics.layout import S_DAMAGE, S_LAPS
+from madsim.physics.layout import C_FINISH, S_DAMAGE, S_LAPS
 from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR,
                                     SENSOR_OFFSETS, SENSOR_TABLE, SN_CARS, SN_DUE, SN_EARLIEST,
                                     SN_FLAT, SN_NEXT, SN_REQUESTED, focus_request, sense_table,
                                     sensor_table_arrays)
-from madsim.physics.world_tick import W_NEAR, W_RACE_POS, WORLD_TABLE, step_table, world_table_arrays
+from madsim.physics.world_tick import W_CP, W_NEAR, W_RACE_POS, WORLD_TABLE, step_table, world_table_arrays
 
 DECODE, STEP, SENSE, ENCODE, DONE = 0, 1, 2, 3, 4
 """The stages in order; `server_tick` returns the one Python must do, or DONE."""
@@ -85,7 +85,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
     ENCODE: `codec_kernels.encode_rows` into out, out_len; stops when a row is left to the
       exact encoder (out_len -1).
     Then DONE, with EVENT when the lap counts differ from laps_seen (N,), a damage exceeds
-    max_damage, or a decoded meta is 1.
+    max_damage, the race is over (a car's C_FINISH < 0: `physics.finish`), or a decoded meta is 1.
     Its scratch arrays are in the table too (decoded (8,), asked, asked_focus, time_s,
     on_track (N,)): it allocates nothing. (It keeps numba's reference counting: the table's
     views are new arrays, which a function compiled without it cannot make.)
@@ -140,9 +140,9 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
                 return ENCODE
     if stop < DONE:
         return stop
-    laps_seen = f8_vector(t, LAPS_SEEN)
+    laps_seen, cp = f8_vector(t, LAPS_SEEN), f8_matrix(t, W0 + W_CP)
     for i in range(n):
-        if st[i, S_LAPS] != laps_seen[i] or st[i, S_DAMAGE] > max_damage:
+        if st[i, S_LAPS] != laps_seen[i] or st[i, S_DAMAGE] > max_damage or cp[i, C_FINISH] < 0.0:
             event = True
     return DONE | EVENT if event else DONE
 

@@ -47,18 +47,18 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
     C_SKID, C_STEERSPD, C_TF, C_TR, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
     C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN, C_BELL, C_IXX, C_IYY, C_RBELL, C_RIXX, C_RIYY, C_RTR2,
-    C_RWB2, C_FINISH, C_WTRACK,
+    C_RWB2, C_WTRACK,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
     P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SURF, P_TB0,
-    P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_BESTLAP, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
-    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_LASTLAP, S_N, S_PIECE, S_R, S_RIDE,
+    P_ZR0, P_ZR1, S_AX, S_AY, S_BACK, S_CURLAP, S_DAMAGE, S_DIST, S_DRAGK, S_FRIC,
+    S_FUEL, S_FZ, S_GEAR, S_GX, S_GY, S_LAPS, S_LAPSTART, S_N, S_PIECE, S_R, S_RIDE,
     S_ROADZ, S_ROLL, S_PITCH, S_S, S_SHIFT, S_STEER, S_THEAD, S_TIME, S_VX, S_VXG, S_VY, S_VYG,
     S_VZ, S_WE, S_SPIN, S_X, S_Y, S_YAW, S_SPINRAW, S_FTRAW, S_FNRAW, T_LENGTH, T_TANGENT_L,
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
-from madsim.physics.suspension import (G, body_vertical, ground_contact, relief, surface_index, takes_damage,
-                                      wheel_loads)
+from madsim.physics.finish import cross_forward, finish_rule, finished, takes_damage
+from madsim.physics.suspension import G, body_vertical, ground_contact, relief, surface_index, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -275,18 +275,9 @@ def track_update(st, i, cp, pt, surf, tsc, x, y, cy, sy, count_laps):
     if count_laps and p != old:
         f_old, f_new = pt[old, P_FLAG], pt[p, P_FLAG]
         if f_old == FLAG_LAST and f_new == FLAG_START:
-            if st[i, S_BACK] > 0.0:
-                st[i, S_BACK] -= 1.0
-            else:
-                st[i, S_LAPS] += 1.0
-                # the first lap's timer runs from the race start: crossing the line from the
-                # grid does not restart it (scr-protocol.md section 5, curLapTime)
-                if st[i, S_LAPS] > 1.0:
-                    lap = st[i, S_TIME] - st[i, S_LAPSTART]
-                    st[i, S_LASTLAP] = lap
-                    if st[i, S_BESTLAP] == 0.0 or lap < st[i, S_BESTLAP]:
-                        st[i, S_BESTLAP] = lap
-                    st[i, S_LAPSTART] = st[i, S_TIME]
+            # the first lap's timer runs from the race start: crossing the line from the
+            # grid does not restart it (scr-protocol.md section 5, curLapTime)
+            cross_forward(st, cp, i)
         elif f_old == FLAG_START and f_new == FLAG_LAST:
             st[i, S_BACK] += 1.0
     return cpsi, spsi, p, q, n, ch, sh
@@ -325,7 +316,7 @@ def track_observed(st, i, pt, surf, tsc, p, q, n, ch, sh):
 @numba.njit(**_JIT)
 def add_damage(st, cp, damage):
     """Add the contact solver's damage points (N,) to the cars of st (rows as cp and damage)
-    that have not finished their race (`suspension.takes_damage`, TORCS's finish rule): the
+    that have not finished their race (`finish.takes_damage`, TORCS's finish rule): the
     one place World and WorldBatch add wall, pit-wall and car-car damage."""
     for i in range(st.shape[0]):
         if damage[i] != 0.0 and takes_damage(st, cp, i):
@@ -395,11 +386,14 @@ def slipstream(st, cp, a, b, length):
     SLIP_ALL_PAIRS cars every pair is visited (`slipstream_few`); with more the others are
     visited in order of distance along the track, up to where no farther car could lower the
     factor, taking two cars' distance as at least SLIP_CHORD x their distance along the track
-    (always so unless a car has spun round in a hairpin)."""
+    (always so unless a car has spun round in a hairpin). First the race's finish rule
+    (`finish.finish_rule`), the other rule between cars of a tick's start: every door calls
+    this (or `slipstream_few`) once at the start of each tick of a race of several cars."""
     n = b - a
     if n <= SLIP_ALL_PAIRS:
         slipstream_few(st, cp, a, b)
         return
+    finish_rule(st, cp, a, b)
     cdv_max = _slip_start(st, cp, a, b)
     if cdv_max == 0.0:
         return
@@ -451,7 +445,8 @@ def _slip_start(st, cp, a, b):
 @numba.njit(**_JIT, **NO_REFCOUNT)
 def slipstream_few(st, cp, a, b):
     """`slipstream` of cars a..b-1 over every pair (for a few cars: no sorting, no allocation,
-    no reference counts: callable from a NO_REFCOUNT kernel)."""
+    no reference counts: callable from a NO_REFCOUNT kernel); the finish rule first, as there."""
+    finish_rule(st, cp, a, b)
     if _slip_start(st, cp, a, b) == 0.0 or b - a < 2:
         return
     for i in range(a, b):
@@ -637,7 +632,6 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     tb_r = p_brake * (1.0 - cp[i, C_BRAKE_FRONT])
     tb0, tb1 = cp[i, C_KB] * tb_f, cp[i, C_KB + 1] * tb_f
     tb2, tb3 = cp[i, C_KB + 2] * tb_r, cp[i, C_KB + 3] * tb_r
-    finish_at = cp[i, C_FINISH]       # crossings at which the car has finished (0: never)
     wear = 1.0 + st[i, S_DAMAGE] / 10000.0
     dragk = st[i, S_DRAGK]
     scx2 = cp[i, C_SCX2] * wear * dragk * dragk
@@ -697,7 +691,7 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
         # --- a finished car goes on at TORCS's "slow pace" (simuv2's ctrlCheck, each step): the
         # accel command capped at 0.2, the brake at least 0.05 above 30 m/s forward; both
         # lower the tick's commands themselves (TORCS's ctrl), as a shift's cap does
-        if finish_at > 0.0 and st[i, S_LAPS] >= finish_at:
+        if finished(st, cp, i):
             if accel > FINISH_ACCEL:
                 accel = FINISH_ACCEL
                 controls[i, U_ACCEL] = FINISH_ACCEL

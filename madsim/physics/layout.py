@@ -169,8 +169,9 @@ C_RIYY = C_RIXX + 1       # 1 / pitch inertia, 1/(kg m^2)
 C_RWB2 = C_RIYY + 1       # 1 / (front pair's x - rear pair's x), 1/m (`suspension.wheel_loads`)
 C_RTR2 = C_RWB2 + 1       # 1 / (left pair's y - right pair's y), 1/m
 C_DMGK = C_RTR2 + 1       # damage factor of the driver's skill (spec 4.12; 0: damage off)
-C_FINISH = C_DMGK + 1     # start-line crossings at which the car has finished (race laps + 1; 0: never):
-                          # no damage after them, TORCS's slow pace (kernel.advance_car)
+C_FINISH = C_DMGK + 1     # start-line crossings at which the car has finished (race laps + 1, fewer
+                          # once another car has finished; 0: never; -1: the race is over): no
+                          # damage after them, TORCS's slow pace (`physics.finish`)
 C_WTRACK = C_FINISH + 1   # the wheel track of the Ackermann angle, m (`kernel.wheel_track`)
 N_CAR = C_WTRACK + 1
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")

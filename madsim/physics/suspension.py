@@ -12,9 +12,9 @@ import math
 import numba
 
 from madsim.physics import elementary as el
+from madsim.physics.finish import takes_damage
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DMGK, C_DREB1, C_DREB2, C_H,
-    C_FINISH, S_LAPS,
     C_PACK, C_RBELL, C_RIDE0, C_RIXX, C_RIYY, C_RTR2, C_RWB2, C_SPRING, C_VBUMP, C_VREB, C_W0,
     C_WMASS, C_WX, C_WY,
     P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L,
@@ -362,15 +362,6 @@ def surface_index(pt, p, q, nw, half):
             return int(pt[p, P_SSURF_L])
         return int(pt[p, P_WSURF_L])
     return int(pt[p, P_SURF])
-
-
-@numba.njit(inline="always", **_JIT)
-def takes_damage(st, cp, i):
-    """True while car i has not finished its race: TORCS 1.3.7 adds no damage (walls, pit walls,
-    cars, bottoming) once the car's RM_CAR_STATE_FINISH is set, i.e. once it has crossed the
-    line more often than the race has laps (cp's C_FINISH = laps + 1 crossings; 0: no end)."""
-    finish = cp[i, C_FINISH]
-    return finish <= 0.0 or st[i, S_LAPS] < finish
 
 
 @numba.njit(**_JIT)

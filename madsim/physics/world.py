@@ -53,10 +53,12 @@ class World:
             "zero" replaces them by 0 and counts them per car in `nan_count`.
         threads: share the cars among numba's threads when there are many (>= 64); results are
             bit-identical either way. Off by default: it only pays on an otherwise idle machine.
-        race_laps: the race's length in laps (None or 0: no end). A car that has crossed the
-            start line more than `race_laps` times has finished (TORCS's RM_CAR_STATE_FINISH)
-            and takes no more damage, and its controls follow TORCS's slow pace (accel <= 0.2,
-            brake >= 0.05 above 30 m/s; docs/physics.md, "Damage after the finish"). Settable.
+        race_laps: the race's length in laps (None: no end). A car that has crossed the
+            start line more than `race_laps` times, or once after another car has finished, has
+            finished (TORCS's RM_CAR_STATE_FINISH): its laps stop, it takes no more damage, and
+            its controls follow TORCS's slow pace (accel <= 0.2, brake >= 0.05 above 30 m/s);
+            a finished car's next crossing ends the race (`race_over`; docs/physics.md, "The
+            finish of a race", `physics.finish`). Settable; `reset` starts the race again.
     """
 
     def __init__(self, track: Track, cars: list[CarSpec], rng: np.random.Generator, *,
@@ -137,19 +139,27 @@ class World:
     @property
     def race_laps(self) -> int | None:
         """The race's laps (None: no end); past them a car has finished: no damage, slow pace."""
-        finish = int(self._cp[0, L.C_FINISH])
-        return finish - 1 if finish > 0 else None
+        return self._race_laps
 
     @race_laps.setter
     def race_laps(self, laps: int | None) -> None:
         self._cp[:, L.C_FINISH] = finish_crossings(laps)
+        self._race_laps = None if laps is None else int(laps)
 
     @property
     def finished(self) -> np.ndarray:
-        """(N,) bool: the cars that have finished the race (more start-line crossings than
-        `race_laps`; all False without `race_laps`)."""
+        """(N,) bool: the cars that have finished the race (TORCS's rule, `physics.finish`: more
+        start-line crossings than `race_laps`, or one more after another car's finish; all False
+        without `race_laps`)."""
         finish = self._cp[:, L.C_FINISH]
-        return (finish > 0) & (self.state[:, L.S_LAPS] >= finish)
+        return (finish < 0) | ((finish > 0) & (self.state[:, L.S_LAPS] >= finish))
+
+    @property
+    def race_over(self) -> bool:
+        """True once the race has ended (TORCS's RM_RACE_ENDED): every car has finished, or a
+        finished car has crossed the start line again. Always False without `race_laps`."""
+        return self._race_laps is not None and bool((self._cp[:, L.C_FINISH] < 0).any()
+                                                    or self.finished.all())
 
     @property
     def contact_active(self) -> bool:
@@ -186,6 +196,7 @@ class World:
         st = self.state
         st[:] = 0.0
         st[:, L.S_FUEL] = [c.fuel for c in self.cars]
+        self._cp[:, L.C_FINISH] = finish_crossings(self._race_laps)     # a new race
         self._set_motion(np.arange(n), s, off, np.zeros(n), speed, gears)
         self.nan_count[:] = 0
         self.contact_wall[:] = False

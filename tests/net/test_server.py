@@ -188,6 +188,44 @@ def test_a_full_lap_ends_with_shutdown_after_a_state_that_carries_the_lap_time(s
     assert re.search(r"^madsim serve: +0 +1 ", server.output, re.M)   # final table: car 0, 1 lap
 
 
+def test_a_race_ends_as_torcs_ends_it_one_lap_after_the_winners_finish(serve):
+    """--laps 1, car 0 driven, car 1 parked on the grid behind the line (it never crosses): TORCS
+    ends the race when the winner, finished, crosses the line again (ReManage: every car is then
+    finished; docs/physics.md, "The finish of a race"), not at the tick limit. The winner's lap
+    count stops at its finish (1 lap in the table, one lap time logged), and its lap timer runs on
+    through the lap after it."""
+    server = serve("--track", TRACK, "--laps", "1", "--countdown", "0", "--max-ticks", "30000", clients=2)
+    seen: list[list[dict]] = [[], []]
+    results = [None, None]
+
+    def drive(car: int, driver):
+        def record(state):
+            seen[car].append(state)
+            return driver(state)
+        with client(server, car) as c:
+            results[car] = c.run(record, max_steps=40_000)
+
+    park = lambda s: {"accel": 0.0, "brake": 1.0, "gear": 0}          # noqa: E731
+    threads = [threading.Thread(target=drive, args=args, daemon=True)
+               for args in ((0, simple_driver), (1, park))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(4 * WAIT_S)
+    assert not any(t.is_alive() for t in threads), server.output
+    assert server.wait_exit() == 0
+    ticks = int(server.wait_line(r"race over after (\d+) ticks").group(1))
+    assert [r.status for r in results] == ["shutdown", "shutdown"] and ticks < 30000
+    lap = float(server.wait_line(r"car 0: lap 1 in ([\d.]+) s").group(1))
+    assert len(re.findall(r"car 0: lap \d+ in", server.output)) == 1
+    last = seen[0][-1]
+    assert last["lastLapTime"] == pytest.approx(lap, abs=6e-4)
+    assert last["curLapTime"] > 20.0                 # the lap after the finish, untimed
+    assert last["distRaced"] > 2 * 1602.48
+    assert re.search(r"^madsim serve: +0 +1 ", server.output, re.M)
+    assert re.search(r"^madsim serve: +1 +0 ", server.output, re.M)
+
+
 def test_three_clients_each_drive_their_own_car_at_the_same_time(serve):
     server = serve("--track", TRACK, "--countdown", "0", "--max-ticks", "150", clients=3)
     states: list[list[dict]] = [[], [], []]

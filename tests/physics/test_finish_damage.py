@@ -73,15 +73,19 @@ def test_a_finished_car_lands_on_its_packers_without_damage(straight, ph):
 
 def _rear_end(track, car, batch=False):
     """Car 0 at 15 m/s 6 m behind car 1 at rest; car 0 has finished (3 crossings of a 2-lap
-    race), car 1 is racing (2). Returns the damage of both after 60 ticks (and the World or the
-    batch's rows for comparison)."""
+    race, the last at 40 s), car 1 is racing (2, its last crossing at 30 s: it finishes at its
+    next). Returns the damage of both after 60 ticks (and the World or the batch's rows for
+    comparison)."""
     where = np.array([[100.0, 0.0, 15.0], [106.0, 0.0, 0.0]])
     laps = np.array([3.0, 2.0])
+    clock = {L.S_TIME: [50.0, 50.0], L.S_LAPSTART: [40.0, 30.0]}
     if batch:
         from madsim.physics.world_batch import WorldBatch
         b = WorldBatch(1, 2, race_laps=2)
         b.start(0, ("rear", (car.name, car.name)), track, [car, car], where)
         b.state[b.rows(0), L.S_LAPS] = laps
+        for col, values in clock.items():
+            b.state[b.rows(0), col] = values
         mask = np.ones(1, dtype=bool)
         for _ in range(60):
             b.step(mask)
@@ -89,6 +93,8 @@ def _rear_end(track, car, batch=False):
     w = World(track, [car, car], np.random.default_rng(0), race_laps=2)
     w.reset(where)
     w.state[:, L.S_LAPS] = laps
+    for col, values in clock.items():
+        w.state[:, col] = values
     for _ in range(60):
         w.step(np.zeros((2, 5)))
     return w
