@@ -12,7 +12,7 @@ so the distance raced (S_DIST) goes on without a jump.
 
 Cars are independent within a tick (the threaded and whole-tick steppers rely on it), so the
 rule that ties them, a car finishing at its first crossing after another car's finish, is
-applied at each tick's start with the cross-car slipstream (`kernel.slipstream`), from the
+applied at each tick's start before the cross-car slipstream (`kernel.tick_start`), from the
 lap times: a car that crossed the line in the previous tick after the first finisher's finish
 counts as finished from this tick's start (TORCS flags it at that very crossing: up to 20 ms of
 its slow pace and damage gate come late)."""

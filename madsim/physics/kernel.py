@@ -377,6 +377,23 @@ def _slip_pair(st, cp, i, j, x, y, yaw, hx, hy, vx, k):
 
 
 @numba.njit(**_JIT)
+def tick_start(st, cp, a, b, length):
+    """The rules between the cars a..b-1 of one race at a tick's start, from their state now:
+    TORCS's finish (`finish.finish_rule`), then the slipstream (`slipstream`). Every door calls
+    this (or `tick_start_few`) once at the start of each tick of a race of several cars."""
+    finish_rule(st, cp, a, b)
+    slipstream(st, cp, a, b, length)
+
+
+@numba.njit(**_JIT, **NO_REFCOUNT)
+def tick_start_few(st, cp, a, b):
+    """`tick_start` for a few cars (up to SLIP_ALL_PAIRS: no sorting, no allocation, no
+    reference counts: callable from a NO_REFCOUNT kernel)."""
+    finish_rule(st, cp, a, b)
+    slipstream_few(st, cp, a, b)
+
+
+@numba.njit(**_JIT)
 def slipstream(st, cp, a, b, length):
     """TORCS's slipstream (spec 4.6) for cars a..b-1 on a track of `length` m, from their poses
     now: the body drag of each is multiplied by drag_factor^2, the smallest over the other cars
@@ -386,14 +403,11 @@ def slipstream(st, cp, a, b, length):
     SLIP_ALL_PAIRS cars every pair is visited (`slipstream_few`); with more the others are
     visited in order of distance along the track, up to where no farther car could lower the
     factor, taking two cars' distance as at least SLIP_CHORD x their distance along the track
-    (always so unless a car has spun round in a hairpin). First the race's finish rule
-    (`finish.finish_rule`), the other rule between cars of a tick's start: every door calls
-    this (or `slipstream_few`) once at the start of each tick of a race of several cars."""
+    (always so unless a car has spun round in a hairpin)."""
     n = b - a
     if n <= SLIP_ALL_PAIRS:
         slipstream_few(st, cp, a, b)
         return
-    finish_rule(st, cp, a, b)
     cdv_max = _slip_start(st, cp, a, b)
     if cdv_max == 0.0:
         return
@@ -445,8 +459,7 @@ def _slip_start(st, cp, a, b):
 @numba.njit(**_JIT, **NO_REFCOUNT)
 def slipstream_few(st, cp, a, b):
     """`slipstream` of cars a..b-1 over every pair (for a few cars: no sorting, no allocation,
-    no reference counts: callable from a NO_REFCOUNT kernel); the finish rule first, as there."""
-    finish_rule(st, cp, a, b)
+    no reference counts: callable from a NO_REFCOUNT kernel)."""
     if _slip_start(st, cp, a, b) == 0.0 or b - a < 2:
         return
     for i in range(a, b):

@@ -295,8 +295,8 @@ class World:
         if self._info[0]:
             u = self._nonfinite(u)
         st = self.state
-        if self.n_cars > 1:      # slipstream: from the poses at the start of the tick
-            kernel.slipstream(st, self._cp, 0, self.n_cars, self.track.length)
+        if self.n_cars > 1:      # finish and slipstream: from the state at the tick's start
+            kernel.tick_start(st, self._cp, 0, self.n_cars, self.track.length)
         if self._solver is None:
             self._advance(st, self._cp, self._curve_w, self._curve_t, self._pt, self._surf, self._tsc,
                           u, nsub, DT, self.fuel_on)

@@ -53,7 +53,7 @@ def advance_slot(e, st, cp, cw, ct, u, tables, trk, off, ncar, kpos, piece, hits
         for i in range(a, b):
             hits[i] = False
         if 1 < b - a <= kernel.SLIP_ALL_PAIRS:   # World.step: from the poses at the tick's start
-            kernel.slipstream_few(st, cp, a, b)  # (more cars: `_advance_one`, it sorts)
+            kernel.tick_start_few(st, cp, a, b)  # (more cars: `_advance_one`, it sorts)
     if not with_contact:
         for i in range(a, b):
             kernel.advance_car(st, i, cp, cw, ct, pt, surf, tsc, u, nsub, dt, fuel_on)
@@ -120,7 +120,7 @@ def advance_slots(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, pi
     n = off.shape[0]
     for e in range(n):
         if run[e] and kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
-            kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
+            kernel.tick_start(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
     e = 0
     while e < n:
         e = advance_run(e, n, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos, near, piece,
@@ -136,7 +136,7 @@ def advance_slots_parallel(st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos,
     for e in numba.prange(off.shape[0]):
         if run[e]:
             if kpos[e] == 0 and ncar[e] > kernel.SLIP_ALL_PAIRS:
-                kernel.slipstream(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
+                kernel.tick_start(st, cp, off[e], off[e] + ncar[e], tables[4][trk[e], L.T_LENGTH])
             while advance_run(e, e + 1, st, cp, cw, ct, u, tables, trk, off, ncar, run, kpos,
                               near, piece, hits, nsub, dt, fuel_on, with_contact, snap, path,
                               turn, contact) == e:

@@ -1,6 +1,7 @@
-"""World.step's compiled part as one call: the control check, slipstream, the sub-step loop with
-the contact broad phase (`contact_kernels.advance_until_near`, whole ticks where nothing can be
-near) and race positions. `World.step` calls it for worlds with contact, and so does the SCR
+"""World.step's compiled part as one call: the control check, the rules between cars at the
+tick's start (finish, slipstream: `kernel.tick_start`), the sub-step loop with the contact broad
+phase (`contact_kernels.advance_until_near`, whole ticks where nothing can be near) and race
+positions. `World.step` calls it for worlds with contact, and so does the SCR
 server's compiled tick (`madsim.net.server_tick`), so both run the same code; only a sub-step
 where something is near goes back to Python (the pymunk narrow phase, `World.finish_tick`).
 """
@@ -13,7 +14,7 @@ import numpy as np
 from madsim.array_table import (b1_vector, f8_matrix, f8_vector, i1_vector, i8_matrix, i8_vector,
                                 readonly)
 from madsim.physics.contact_kernels import SNAP_COLUMNS, _respond_settle, advance_until_near
-from madsim.physics.kernel import add_damage, check_controls, refresh, slipstream
+from madsim.physics.kernel import add_damage, check_controls, refresh, tick_start
 from madsim.physics.layout import S_DIST, S_LAPS, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
 
 NONFINITE = -1
@@ -58,8 +59,8 @@ def step_world(u, nsub, st, cp, curve_w, curve_t, pt, surf, tsc, dt, fuel_on, le
     if info[0]:
         return NONFINITE
     n = st.shape[0]
-    if n > 1:        # slipstream: from the poses at the start of the tick
-        slipstream(st, cp, 0, n, length)
+    if n > 1:        # finish and slipstream: from the state at the tick's start
+        tick_start(st, cp, 0, n, length)
     for i in range(n):
         wall[i] = False
         car[i] = False

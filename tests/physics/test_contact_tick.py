@@ -28,7 +28,7 @@ def _by_hand(w: World, u: np.ndarray, wall, car, pairs) -> None:
     st, solver = w.state, w._solver
     cols = tuple(st[:, c] for c in (L.S_X, L.S_Y, L.S_YAW, L.S_VXG, L.S_VYG, L.S_R))
     u = u.copy()
-    kernel.slipstream(st, w._cp, 0, w.n_cars, w.track.length)
+    kernel.tick_start(st, w._cp, 0, w.n_cars, w.track.length)
     wall[:] = False
     car[:] = False
     pairs.clear()
