@@ -256,7 +256,8 @@ def cmd_serve(args) -> int:
                        timeout_ms=args.timeout_ms, noisy=args.noisy, identified_reply=args.identified_reply,
                        seed=args.seed, laps=args.laps, max_ticks=args.max_ticks, countdown_ticks=args.countdown,
                        start_timeout_s=args.start_timeout, client_deadline_s=args.client_deadline,
-                       log=lambda m: print(f"madsim serve: {m}", flush=True), log_csv=args.log_csv)
+                       log=lambda m: print(f"madsim serve: {m}", flush=True), log_csv=args.log_csv,
+                       lap_time_limit=args.lap_time_limit)
     try:
         server.open()
     except ServerError as exc:

@@ -180,6 +180,9 @@ def add_serve_parser(sub) -> None:
                     help="sync mode: seconds of silence before a client is treated as in timeout mode")
     sv.add_argument("--nofuel", action="store_true")
     sv.add_argument("--nodamage", action="store_true")
+    sv.add_argument("--lap-time-limit", action="store_true",
+                    help="TORCS's lap-time limit: a car whose current lap has lasted longer than 84.5 s + "
+                         "the track's length at 10 m/s is out of the race (default off, as torcs -nolaptime)")
     sv.add_argument("--log-csv", default=None, help="write a per-tick trace to this CSV file")
     sv.set_defaults(func=_handler("madsim.cli:cmd_serve"))
 

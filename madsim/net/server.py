@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import gc
+import math
 import os
 import select
 import socket
@@ -46,6 +47,13 @@ RECV_BYTES = 65536   # receive buffer per car: any UDP datagram fits (decoding r
 STOP_POLL_S = 0.2   # longest wait for a client before a stop() request is looked at again
 COUNTDOWN_TICKS = 49          # TORCS polls robots ~49 times during the start countdown (§4.3)
 MAX_DAMAGE = 10000.0          # a car above this is out of the race (TORCS default)
+
+
+def lap_time_limit_s(track_length_m: float) -> float:
+    """TORCS's lap-time limit: a robot's car whose current lap has lasted longer is out of the
+    race (84.5 s + the track's length at 10 m/s; not turned off by the SCR build's -nolaptime,
+    turned off by gym_torcs' vtorcs -nolaptime)."""
+    return 84.5 + float(track_length_m) / 10.0
 CSV_FIELDS = ("tick", "time", "car", "x", "y", "yaw", "distFromStart", "trackPos", "angle",
               "speedX", "speedY", "rpm", "gear", "laps", "curLapTime", "lastLapTime", "damage",
               "steer", "accel", "brake", "gear_request", "clutch")
@@ -112,7 +120,9 @@ class ScrServer:
     (optional, one per car) replaces the default port+i, e.g. for a TORCS race file whose
     scr_server indices have gaps. `tick_schedule`: "fixed" (every tick 0.02 s, the default) or
     "torcs" (TORCS's own driver calls, 0.02 or 0.022 s apart, `madsim.physics.schedule`).
-    Sensor noise (`noisy`) draws from default_rng([seed, 1]). `compiled_loop` (default True):
+    Sensor noise (`noisy`) draws from default_rng([seed, 1]). `lap_time_limit`: TORCS's removal
+    of a car whose current lap has lasted longer than 84.5 s + track length / (10 m/s)
+    (`lap_time_limit_s`; default off, as `torcs -nolaptime`). `compiled_loop` (default True):
     run the usual sync ticks in `madsim.net.sync_loop` (False: every tick through Python, the
     same bytes; for tests and comparisons).
     """
@@ -124,7 +134,7 @@ class ScrServer:
                  start_timeout_s: float | None = None, client_deadline_s: float = 5.0,
                  log: Callable[[str], None] | None = None, log_csv: str | os.PathLike | None = None,
                  pid: int | None = None, ports: list[int] | None = None, tick_schedule: str = "fixed",
-                 compiled_loop: bool = True):
+                 compiled_loop: bool = True, lap_time_limit: bool = False):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if identified_reply not in ("plain", "pid"):
@@ -150,6 +160,7 @@ class ScrServer:
         self.client_deadline_s = float(client_deadline_s)
         self._rcvtimeo_s = min(self.client_deadline_s, STOP_POLL_S)   # one blocking read's longest wait
         self.compiled_loop = bool(compiled_loop)
+        self.lap_time_limit = bool(lap_time_limit)
         self.log = log or (lambda msg: None)
         self.log_csv = log_csv
         self.stats = ServerStats()
@@ -312,7 +323,8 @@ class ScrServer:
         suite = SensorSuite(world, noisy=self.noisy, rng=np.random.default_rng([self.seed, 1]))
         for c in self.cars:
             suite.set_angles(c.index, c.angles)
-        race = ServerTick(world, suite, self._controls, self._inbox, self._inlen, MAX_DAMAGE)
+        max_lap_s = lap_time_limit_s(world.track.length) if self.lap_time_limit else math.inf
+        race = ServerTick(world, suite, self._controls, self._inbox, self._inlen, MAX_DAMAGE, max_lap_s)
         self.clock.reset()
         r = self._race_state = _RaceState(race, world.column("laps").tolist(), list(self.cars),
                                           self.countdown_ticks)
@@ -405,13 +417,18 @@ class ScrServer:
             r.laps = now_laps
             race.laps_seen[:] = now_laps
         damage = world.column("damage").tolist()
-        if max(damage) > MAX_DAMAGE:
-            r.cars = [c for c in r.cars if damage[c.index] <= MAX_DAMAGE]
+        lap_s = world.column("cur_lap_time").tolist()
+        out = [c for c in r.cars if damage[c.index] > MAX_DAMAGE or lap_s[c.index] > race.max_lap_s]
+        if out:
+            for c in out:
+                why = (f"damage {damage[c.index]:.0f} > {MAX_DAMAGE:.0f}" if damage[c.index] > MAX_DAMAGE
+                       else f"its lap has lasted {lap_s[c.index]:.2f} s > {race.max_lap_s:.2f} s "
+                            "(TORCS's lap-time limit)")
+                self.log(f"car {c.index} is out of the race at tick {r.tick}: {why}")
+                self._inlen[c.index] = -1     # out of the race: no answer read again
+            r.cars = [c for c in r.cars if c not in out]
             if r.fast is not None:
                 r.fast.set_cars(c.index for c in r.cars)
-            for c in self.cars:
-                if damage[c.index] > MAX_DAMAGE:
-                    self._inlen[c.index] = -1     # out of the race: no answer read again
         restart_by = next((c.index for c in r.cars if race.meta[c.index] == 1), None)
         if restart_by is None:
             return False

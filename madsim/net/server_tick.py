@@ -13,6 +13,8 @@ the start countdown, a value the compiled encoder leaves to the exact one.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -21,7 +23,7 @@ from madsim.net import protocol as P
 from madsim.array_table import (address_table, b1_vector, f8_matrix, f8_vector, i8_vector,
                                 readonly, u1_matrix, u1_vector)
 from madsim.net.codec_kernels import decode_stock, encode_rows
-from madsim.physics.layout import C_FINISH, S_DAMAGE, S_LAPS
+from madsim.physics.layout import C_FINISH, S_CURLAP, S_DAMAGE, S_LAPS
 from madsim.physics.sensors import (FOCUS_NONE, N_VALUES, O_CURLAP, O_FOCUS, O_GEAR,
                                     SENSOR_OFFSETS, SENSOR_TABLE, SN_CARS, SN_DUE, SN_EARLIEST,
                                     SN_FLAT, SN_NEXT, SN_REQUESTED, focus_request, sense_table,
@@ -63,13 +65,13 @@ RACE_POS, NEAR = W0 + W_RACE_POS, W0 + W_NEAR
 
 @numba.njit(cache=True, error_model="numpy")
 def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, length, half_width,
-                max_range, max_bytes, max_damage):
+                max_range, max_bytes, max_damage, max_lap_s):
     """Run the stages first..stop-1 of one tick on the World state `st`, its scratch copy `snap`
     and the arrays of address table `t` (`TABLE`);
     returns the first stage left to Python (its inputs complete, its outputs not), `stop` if
     it was reached, or DONE (| EVENT). The scalars: the World's sub-step (s), fuel flag and
     track length (m), the track's half width and the sensors' range (m), the state message's
-    byte limit, the damage limit.
+    byte limit, the damage limit, the lap-time limit (s; inf: none).
 
     DECODE: car i's datagram is inbox[i, :inlen[i]] (inlen[i] < 0: no answer this tick, its
       controls and focus request stay); into controls (N, 5), meta (N,) and the focus
@@ -85,7 +87,7 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
     ENCODE: `codec_kernels.encode_rows` into out, out_len; stops when a row is left to the
       exact encoder (out_len -1).
     Then DONE, with EVENT when the lap counts differ from laps_seen (N,), a damage exceeds
-    max_damage, the race is over (a car's C_FINISH < 0: `physics.finish`), or a decoded meta is 1.
+    max_damage, a current lap has lasted longer than max_lap_s, the race is over (a car's C_FINISH < 0: `physics.finish`), or a decoded meta is 1.
     Its scratch arrays are in the table too (decoded (8,), asked, asked_focus, time_s,
     on_track (N,)): it allocates nothing. (It keeps numba's reference counting: the table's
     views are new arrays, which a function compiled without it cannot make.)
@@ -142,7 +144,8 @@ def server_tick(first, stop, stepping, plain, nsub, st, snap, t, dt, fuel_on, le
         return stop
     laps_seen, cp = f8_vector(t, LAPS_SEEN), f8_matrix(t, W0 + W_CP)
     for i in range(n):
-        if st[i, S_LAPS] != laps_seen[i] or st[i, S_DAMAGE] > max_damage or cp[i, C_FINISH] < 0.0:
+        if st[i, S_LAPS] != laps_seen[i] or st[i, S_DAMAGE] > max_damage or cp[i, C_FINISH] < 0.0 \
+                or st[i, S_CURLAP] > max_lap_s:
             event = True
     return DONE | EVENT if event else DONE
 
@@ -158,7 +161,7 @@ class ServerTick:
     """
 
     def __init__(self, world, suite, controls: np.ndarray, inbox: np.ndarray, inlen: np.ndarray,
-                 max_damage: float):
+                 max_damage: float, max_lap_s: float = math.inf):
         n = world.n_cars
         self.world, self.suite, self.u = world, suite, controls
         self.inbox, self.inlen = inbox, inlen
@@ -176,6 +179,7 @@ class ServerTick:
         self._scratch = (np.zeros(8), np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n),
                          np.zeros(n, dtype=np.bool_))     # server_tick's (see TABLE)
         self.max_damage = float(max_damage)
+        self.max_lap_s = float(max_lap_s)     # TORCS's lap-time limit (inf: none)
         self.bad_datagrams = 0             # answers not well formed (applied as TORCS reads them)
         self.compiled = world.tick_args is not None
         self._world_args = None
@@ -200,7 +204,7 @@ class ServerTick:
         # the state and its scratch copy go as arguments: typed as World.step's callers see them
         # (C order for one car), so the physics kernels are compiled once for both
         self.args = (w[0], w[17], address_table(arrays, TABLE), w[7], w[8], w[9], half, max_range,
-                     max_bytes, self.max_damage)
+                     max_bytes, self.max_damage, self.max_lap_s)
 
     def refresh(self) -> None:
         """Call after the World or the suite replaced an array (e.g. World.reset)."""

@@ -55,7 +55,8 @@ def _now_ns(timespec):
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen, out, out_len, scratch,
-               result, st, snap, table, dt, fuel_on, length, half_width, max_range, max_bytes, max_damage):
+               result, st, snap, table, dt, fuel_on, length, half_width, max_range, max_bytes, max_damage,
+               max_lap_s):
     """Up to `limit` sync ticks, for at most about `budget_ns` of wall time; returns the ticks
     run (a TICK hand-back counts its tick) and leaves in result (4,) int64 why it stopped and
     its arguments (module docstring).
@@ -99,7 +100,8 @@ def sync_ticks(limit, budget_ns, nsub, fds, pollfds, peers, order, inbox, inlen,
             now = _now_ns(timespec)                     # the next car's wait begins
         # typed as ServerTick.run passes them (int64, bool), not as literals: one compile
         status = server_tick(np.int64(0), np.int64(DONE), np.bool_(True), np.bool_(True), nsub, st, snap,
-                             table, dt, fuel_on, length, half_width, max_range, max_bytes, max_damage)
+                             table, dt, fuel_on, length, half_width, max_range, max_bytes, max_damage,
+                             max_lap_s)
         ticks += 1
         scratch[3] += 1
         if status != DONE:

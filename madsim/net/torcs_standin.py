@@ -14,7 +14,10 @@ It reads TORCS's command line (spec/scr-protocol.md sections 8, 10 and 12) and r
                  reuse the last controls). Without -t the server runs in sync mode: it waits for
                  every client's answer (deterministic; a silent client is dropped to timeout
                  behaviour after 5 s with a warning).
-    -nofuel -nodamage -noisy   as TORCS. -nolaptime: accepted; madsim never removes slow cars.
+    -nofuel -nodamage -noisy   as TORCS.
+    -nolaptime   no lap-time limit. Without it a car whose current lap has lasted longer than
+                 84.5 s + the track's length at 10 m/s is out of the race, as in TORCS (the SCR
+                 1.3.7 build ignores -nolaptime; vtorcs, gym_torcs' TORCS, honours it).
     -p PORT      base port (vtorcs). Else $TORCS_PORT (MADRaS' fork). Else 3001 with -r, 3101
                  without (gym_torcs' vtorcs default).
     -tick-schedule fixed|torcs   madsim's option (not TORCS's): `torcs` calls the clients on
@@ -73,6 +76,7 @@ class Options:
     fuel: bool = True
     damage: bool = True
     noisy: bool = False
+    lap_time_limit: bool = True       # TORCS's; -nolaptime turns it off (as vtorcs does)
     identified: str | None = None
     tick_schedule: str = "fixed"
     notes: list[str] = field(default_factory=list)
@@ -123,7 +127,7 @@ def parse_args(argv: list[str]) -> Options:
         elif a == "-nodamage":
             opts.damage = False
         elif a == "-nolaptime":
-            pass   # madsim never removes a car for a slow lap
+            opts.lap_time_limit = False
         elif a == "-noisy":
             opts.noisy = True
         elif a == "-tick-schedule":
@@ -305,7 +309,7 @@ def build(opts: Options, env: dict[str, str], home: Path):
                   timeout_ms=opts.timeout_us / 1000.0 if opts.timeout_us is not None else 10.0,
                   noisy=opts.noisy, laps=plan.laps, countdown_ticks=plan.countdown,
                   identified_reply=opts.identified or ("pid" if env_port else "plain"),
-                  tick_schedule=opts.tick_schedule)
+                  tick_schedule=opts.tick_schedule, lap_time_limit=opts.lap_time_limit)
     return kwargs, plan, track
 
 

@@ -226,6 +226,32 @@ def test_a_race_ends_as_torcs_ends_it_one_lap_after_the_winners_finish(serve):
     assert re.search(r"^madsim serve: +1 +0 ", server.output, re.M)
 
 
+def test_the_lap_time_limit_takes_a_car_out_as_torcs_does(serve):
+    """--lap-time-limit: a car whose current lap has lasted longer than 84.5 s + length / (10
+    m/s) is out of the race (TORCS's robot lap-time limit; madsim-oval: 244.748 s). Car 0 parked
+    on the grid never crosses the line: it is out at the first tick past the limit, and with no
+    car left the race is over and its client told so."""
+    server = serve("--track", TRACK, "--countdown", "0", "--max-ticks", "20000", "--lap-time-limit",
+                   clients=1)
+    limit = 84.5 + 1602.48 / 10.0
+    seen: list[dict] = []
+
+    def park(state):
+        seen.append(state)
+        return {"accel": 0.0, "brake": 1.0, "gear": 0}
+
+    with client(server, 0) as c:
+        result = c.run(park, max_steps=30_000)
+    assert result.status == "shutdown"
+    assert server.wait_exit() == 0
+    lap = float(server.wait_line(r"car 0 is out of the race at tick \d+: its lap has lasted ([\d.]+) s")
+                .group(1))
+    assert limit < lap <= limit + 0.02 + 1e-9           # the first tick past the limit
+    ticks = int(server.wait_line(r"race over after (\d+) ticks").group(1))
+    assert ticks == round(lap / 0.02) < 20000
+    assert seen[-1]["curLapTime"] <= limit + 0.02 + 1e-9
+
+
 def test_three_clients_each_drive_their_own_car_at_the_same_time(serve):
     server = serve("--track", TRACK, "--countdown", "0", "--max-ticks", "150", clients=3)
     states: list[list[dict]] = [[], [], []]

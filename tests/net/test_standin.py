@@ -118,6 +118,9 @@ def test_gym_torcs_launch_line_without_race_file_uses_vtorcs_defaults(home):
     assert not opts.fuel and not opts.damage and any("-vision" in n for n in opts.notes)
     assert build([], home, {"TORCS_PORT": "3001"})[0]["ports"] == [3001]   # MADRaS' GUI line
     assert build(["-identified", "plain"], home, {"TORCS_PORT": "3001"})[0]["identified_reply"] == "plain"
+    # TORCS's lap-time limit: on as in TORCS, off with -nolaptime (as vtorcs)
+    assert kwargs["lap_time_limit"] is False
+    assert build(["-nofuel", "-nodamage"], home)[0]["lap_time_limit"] is True
 
 
 def test_race_distance_sets_the_laps_as_torcs_does(home, tmp_path):
