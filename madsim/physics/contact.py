@@ -91,6 +91,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 import pymunk.batch as pmb
+from pymunk._chipmunk_cffi import ffi as _ffi, lib as _lib
 
 from madsim.physics.contact_kernels import (
     CAR_DAMAGE_PER_NS,
@@ -132,6 +133,11 @@ _ARB_FIELDS = (pmb.ArbiterFields.BODY_A_ID | pmb.ArbiterFields.BODY_B_ID | pmb.A
                | pmb.ArbiterFields.POINT_A_2 | pmb.ArbiterFields.POINT_B_2
                | pmb.ArbiterFields.DISTANCE_2)
 _ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2 x (pa, pb, dist))
+# The narrow phase calls pymunk.batch's own C iterators with request structs made once per
+# solver (`_BatchIO`): what set_space_bodies / get_space_arbiters do, without a new struct, a
+# function look-up and two buffer objects per call.
+_SET_BODIES = _ffi.addressof(_lib, "pmSpaceBodySetIteratorFuncBatched")
+_GET_ARBITERS = _ffi.addressof(_lib, "pmSpaceArbiterIteratorFuncBatched")
 _F64, _I64 = np.dtype(np.float64), np.dtype(np.int64)
 
 JOIN_M = 0.01    # pit-wall quads whose edges meet this closely are one wall (float32 piece starts)
@@ -242,6 +248,11 @@ class ContactSolver:
         self._drop = np.zeros(n, dtype=np.int64)
         self._set_buf = pmb.Buffer()
         self._arb_buf = pmb.Buffer()
+        self._set_req = _batch_request(_BODY_FIELDS, self._set_buf)
+        self._arb_req = _batch_request(_ARB_FIELDS, self._arb_buf)
+        self._arb_views = _arbiter_views(self._arb_req)
+        self._cp_space = None              # the held space's chipmunk pointer
+        self._space_touched = False        # bodies added / removed since its last step
         self._slots = np.zeros(0, dtype=np.int64)    # car index per dynamic body, in space order
         self._poses = np.zeros(0)
         self._pair_out = np.zeros((max(16, 4 * n), 2), dtype=np.int64)
@@ -390,14 +401,24 @@ class ContactSolver:
         if n_add or n_drop:
             self._sync_members(n_add, n_drop)
             _fill_poses(self._slots, x, y, yaw, self._poses)
-        pmb.set_space_bodies(self._space, _BODY_FIELDS, self._set_buf)
-        self._space.step(dt)
+        cp, req = self._cp_space, self._set_req
+        req.floatArray.num = 0                        # the poses are read from the start
+        _lib.cpSpaceEachBody(cp, _SET_BODIES, req)
+        if self._space_touched:        # pymunk's own step checks new bodies and drops removed ones
+            self._space.step(dt)
+            self._space_touched = False
+        else:
+            _lib.cpSpaceStep(cp, dt)
         self._counts["pymunk_steps"] += 1
-        buf = self._arb_buf
-        buf.clear()
-        pmb.get_space_arbiters(self._space, _ARB_FIELDS, buf)
-        ints = np.frombuffer(buf.int_buf(), dtype=np.int64)
-        floats = np.frombuffer(buf.float_buf(), dtype=np.float64)
+        req = self._arb_req
+        got_i, got_f = req.intArray, req.floatArray
+        got_i.num = got_f.num = 0
+        _lib.cpSpaceEachCachedArbiter(cp, _GET_ARBITERS, req)
+        views = self._arb_views
+        if got_i.max != views[0] or got_f.max != views[1]:        # pymunk grew its arrays
+            views = self._arb_views = _arbiter_views(req)
+        ints = views[2][:got_i.num]
+        floats = views[3][:got_f.num]
         need = ints.size // _ARB_INTS + 4 * self._meta[1] + 1
         if need > self._pair_out.shape[0]:
             self._pair_out = np.zeros((2 * need, 2), dtype=np.int64)
@@ -407,6 +428,8 @@ class ContactSolver:
     def _take_space(self) -> None:
         """Hold a barrier space from the track's pool (built if none is free) until reset()."""
         self._space, self._mat_bodies = self._lease[0] = self._pool.take()
+        self._cp_space = self._space._space
+        self._space_touched = True
         n = self.n_cars
         keys = np.array([b.id for b in self._bodies] + [b.id for b in self._mat_bodies], dtype=np.int64)
         codes = np.concatenate([np.arange(n), -1 - np.arange(len(self._mat_bodies))]).astype(np.int64)
@@ -423,6 +446,7 @@ class ContactSolver:
             self._space.add(self._bodies[i], self._shapes[i])
         for i in self._drop[:n_drop]:
             self._space.remove(self._bodies[i], self._shapes[i])
+        self._space_touched = True
         self._refresh_slots()
 
     def _refresh_slots(self) -> None:
@@ -436,6 +460,27 @@ class ContactSolver:
 
 
 # --- set-up helpers (plain Python) ---------------------------------------------------------------
+
+
+def _batch_request(fields, buf: pmb.Buffer):
+    """pymunk.batch's request struct for `fields` over the arrays of `buf` (the struct points
+    at the buffer's array headers, which stay put when pymunk grows or replaces their data)."""
+    req = _ffi.new("pmBatchedData *")
+    req.fields = fields.value
+    req.floatArray = buf._float_arr
+    req.intArray = buf._int_arr
+    return req
+
+
+def _arbiter_views(req) -> tuple:
+    """(int capacity, float capacity, int64 view, float64 view) of a request's arrays at their
+    current capacity: valid until pymunk grows them (the capacities then change)."""
+    views = []
+    for arr, dtype in ((req.intArray, np.int64), (req.floatArray, np.float64)):
+        n = arr.max
+        views.append(np.frombuffer(_ffi.buffer(arr.arr, 8 * n), dtype=dtype) if n
+                     else np.zeros(0, dtype=dtype))
+    return (req.intArray.max, req.floatArray.max, *views)
 
 
 def _barrier_table(track) -> np.ndarray:
