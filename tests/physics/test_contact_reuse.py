@@ -88,3 +88,34 @@ def test_two_worlds_on_one_track_at_once(fresh):
     gc.collect()                               # a dropped solver gives its space back
     assert len(_POOLS[track].free) == 1
     assert all(body.body_type == body.STATIC for body in _POOLS[track].free[0][0].bodies)
+
+
+def test_narrow_reads_what_pymunk_batch_reports():
+    """ContactSolver.narrow calls pymunk.batch's C iterators itself (request structs made once,
+    views over the arbiter arrays kept while their capacity stays): after every narrow phase of
+    300 ticks of six cars in contact its arrays equal pymunk.batch's own get_space_arbiters on
+    the same space, through the arrays' growth and cars joining and leaving the space."""
+    from madsim.physics import contact as C
+
+    w, rng = _world(load_track(TRACK))
+    solver = w._solver
+    seen = {"calls": 0, "arbiters": 0, "capacities": set()}
+    narrow = solver._narrow
+
+    def checked(x, y, yaw, dt):
+        ints, floats = narrow(x, y, yaw, dt)
+        buf = pmb.Buffer()
+        pmb.get_space_arbiters(solver._space, C._ARB_FIELDS, buf)
+        np.testing.assert_array_equal(ints, np.frombuffer(buf.int_buf(), dtype=np.int64))
+        np.testing.assert_array_equal(floats, np.frombuffer(buf.float_buf(), dtype=np.float64))
+        seen["calls"] += 1
+        seen["arbiters"] = max(seen["arbiters"], ints.size // C._ARB_INTS)
+        seen["capacities"].add(solver._arb_views[0])
+        return ints, floats
+
+    solver._narrow = checked
+    for _ in range(300):
+        _tick(w, rng)
+    assert seen["calls"] > 50 and seen["arbiters"] >= 2
+    assert len(seen["capacities"]) >= 2           # pymunk grew its arrays: the views were redone
+    assert solver.stats["pymunk_steps"] == seen["calls"]
