@@ -12,6 +12,7 @@ def load_script(name: str):
     `unload` is called)."""
     spec = importlib.util.spec_from_file_location(f"madsim_{name}", BENCHMARKS / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod          # a dataclass of the script looks its module up there
     spec.loader.exec_module(mod)
     return mod
 
@@ -19,4 +20,6 @@ def load_script(name: str):
 def unload() -> None:
     """Forget the scripts' fidelity.py and slide_window imports (each test module loads afresh)."""
     for name in ("madsim_fidelity_bench", "slide_window"):
+        sys.modules.pop(name, None)
+    for name in [n for n in sys.modules if n.startswith("madsim_") and n != "madsim_fidelity_bench"]:
         sys.modules.pop(name, None)
