@@ -661,8 +661,11 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     cd2, sd2 = cp[i, C_TOECOS + 2], cp[i, C_TOESIN + 2]       # the rear wheels' (constant) heading
     cd3, sd3 = cp[i, C_TOECOS + 3], cp[i, C_TOESIN + 3]
     # the four tyres as one loop over lanes (wheel k in lane k, on this call's stack): LLVM
-    # vectorises it (SIMD) because its trip count is not a constant it could unroll first
-    n_lanes = min(4, cp.shape[1])
+    # vectorises it (SIMD) because its trip count is not a constant it could unroll first;
+    # `& ~3` tells it the count is 0 or 4, so the vector body stores whole registers (with a
+    # count of 1..4 it masked them, vmaskmovpd, and the scalar reads that follow waited for
+    # the masked stores: a store-to-load forwarding stall, ~5 % of the kernel's samples)
+    n_lanes = min(4, cp.shape[1]) & ~3
     l_vx, l_vy, l_cd, l_sd, l_spin = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
     l_b, l_c, l_e = el.lanes4(), el.lanes4(), el.lanes4()
     l_ft, l_fn, l_dft = el.lanes4(), el.lanes4(), el.lanes4()
