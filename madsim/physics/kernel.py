@@ -666,7 +666,8 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     # vectorises it (SIMD) because its trip count is not a constant it could unroll first;
     # `& ~3` tells it the count is 0 or 4, so the vector body stores whole registers (with a
     # count of 1..4 it masked them, vmaskmovpd, and the scalar reads that follow waited for
-    # the masked stores: a store-to-load forwarding stall, ~5 % of the kernel's samples)
+    # the masked stores, no store-to-load forwarding: make_vec's physics took ~12 % longer,
+    # benchmarks/RESULTS.md, "The car sub-step's masked stores")
     n_lanes = min(4, cp.shape[1]) & ~3
     l_vx, l_vy, l_cd, l_sd, l_spin = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
     l_b, l_c, l_e = el.lanes4(), el.lanes4(), el.lanes4()
