@@ -47,7 +47,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     C_MAXI, C_NCURVE, C_OPLOAD, C_PMAX, C_RAD, C_RATIO, C_RC, C_REACH, C_REACT, C_SCX2, C_SHIFT,
     C_SKID, C_STEERSPD, C_TF, C_TR, C_TOE, C_TICK, C_TOP, C_VISC, C_VISC_MAX, C_WGANG, C_WGKX, C_WGKZ,
     C_WGCOS, C_WGSIN, C_TOECOS, C_TOESIN, C_BELL, C_IXX, C_IYY, C_RBELL, C_RIXX, C_RIYY, C_RTR2,
-    C_RWB2, C_WTRACK,
+    C_RWB2, C_W0, C_W0B, C_WTRACK,
     C_WGX, C_WGZ, C_WX, C_WY, C_DKIND, C_DSLIP, C_DLOCK, C_DLOCKB, C_DMIN, C_DSPAN, C_DVISC,
     DIFF_FREE, DIFF_LSD, DIFF_SPOOL, DIFF_VISCOUS, FLAG_LAST, FLAG_START, P_A0, P_B0, P_B1,
     P_CURV, P_FLAG, P_INVLEN, P_LEN, P_S0, P_SAMESURF, P_SURF, P_TB0,
@@ -583,11 +583,13 @@ def car_derived(cp):
     C_TOECOS (per wheel) from the angles C_WGANG and C_TOE (rad), with this kernel's own
     math.sin / math.cos (`advance_car` reads them instead of 4 libm sincos a call); the
     reciprocals C_RBELL (per wheel), C_RIXX, C_RIYY, C_RWB2, C_RTR2 that the sub-step multiplies
-    by instead of dividing (`suspension.wheel_loads`, `body_vertical`); the wheel track C_WTRACK
-    (`wheel_track`)."""
+    by instead of dividing (`suspension.wheel_loads`, `body_vertical`); the quotients C_W0B (static
+    load / bellcrank, per wheel: the same division the sub-step made, once); the wheel track
+    C_WTRACK (`wheel_track`)."""
     for i in range(cp.shape[0]):
         for k in range(4):
             cp[i, C_RBELL + k] = 1.0 / cp[i, C_BELL + k]
+            cp[i, C_W0B + k] = cp[i, C_W0 + k] / cp[i, C_BELL + k]
         cp[i, C_RIXX], cp[i, C_RIYY] = 1.0 / cp[i, C_IXX], 1.0 / cp[i, C_IYY]
         cp[i, C_RWB2] = 1.0 / ((cp[i, C_WX] + cp[i, C_WX + 1]) - (cp[i, C_WX + 2] + cp[i, C_WX + 3]))
         cp[i, C_RTR2] = 1.0 / ((cp[i, C_WY + 1] + cp[i, C_WY + 3]) - (cp[i, C_WY] + cp[i, C_WY + 2]))
@@ -661,8 +663,12 @@ def advance_car(st, i, cp, curve_w, curve_t, pt, surf, tsc, controls, nsub, dt, 
     cd2, sd2 = cp[i, C_TOECOS + 2], cp[i, C_TOESIN + 2]       # the rear wheels' (constant) heading
     cd3, sd3 = cp[i, C_TOECOS + 3], cp[i, C_TOESIN + 3]
     # the four tyres as one loop over lanes (wheel k in lane k, on this call's stack): LLVM
-    # vectorises it (SIMD) because its trip count is not a constant it could unroll first
-    n_lanes = min(4, cp.shape[1])
+    # vectorises it (SIMD) because its trip count is not a constant it could unroll first;
+    # `& ~3` tells it the count is 0 or 4, so the vector body stores whole registers (with a
+    # count of 1..4 it masked them, vmaskmovpd, and the scalar reads that follow waited for
+    # the masked stores, no store-to-load forwarding: make_vec's physics took ~12 % longer,
+    # benchmarks/RESULTS.md, "The car sub-step's masked stores")
+    n_lanes = min(4, cp.shape[1]) & ~3
     l_vx, l_vy, l_cd, l_sd, l_spin = el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4(), el.lanes4()
     l_b, l_c, l_e = el.lanes4(), el.lanes4(), el.lanes4()
     l_ft, l_fn, l_dft = el.lanes4(), el.lanes4(), el.lanes4()

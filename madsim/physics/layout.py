@@ -173,7 +173,9 @@ C_FINISH = C_DMGK + 1     # start-line crossings at which the car has finished (
                           # once another car has finished; 0: never; -1: the race is over): no
                           # damage after them, TORCS's slow pace (`physics.finish`)
 C_WTRACK = C_FINISH + 1   # the wheel track of the Ackermann angle, m (`kernel.wheel_track`)
-N_CAR = C_WTRACK + 1
+C_W0B = C_WTRACK + 1      # static load / bellcrank ratio, N, per wheel (`kernel.car_derived`:
+                          # the spring's preload in `suspension.wheel_loads`, divided once)
+N_CAR = C_W0B + 4
 DIFF_KINDS = ("NONE", "FREE", "LIMITED SLIP", "VISCOUS COUPLER", "SPOOL")
 DIFF_NONE, DIFF_FREE, DIFF_LSD, DIFF_VISCOUS, DIFF_SPOOL = range(5)
 (C_MASS, C_IZZ, C_A, C_B, C_L, C_H, C_TF, C_TR, C_WF, C_WFR, C_WRR,

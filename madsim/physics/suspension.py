@@ -16,7 +16,7 @@ from madsim.physics.finish import takes_damage
 from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.py
     C_A, C_ARB, C_B, C_BELL, C_COURSE, C_DBUMP1, C_DBUMP2, C_DMGK, C_DREB1, C_DREB2, C_H,
     C_PACK, C_RBELL, C_RIDE0, C_RIXX, C_RIYY, C_RTR2, C_RWB2, C_SPRING, C_VBUMP, C_VREB, C_W0,
-    C_WMASS, C_WX, C_WY,
+    C_W0B, C_WMASS, C_WX, C_WY,
     P_A0, P_B0, P_B1, P_BSURF_L, P_BSURF_R, P_BW_L, P_BW_R, P_CURB_L, P_CURB_R, P_CURBK_L,
     P_CURBK_R, P_CURV, P_INVLEN, P_LEN, P_S0, P_SSURF_L, P_SSURF_R, P_SURF, P_SW0_L, P_SW0_R,
     P_SW1_L, P_SW1_R, P_TB0, P_WSURF_L, P_WSURF_R, P_ZR0, P_ZR1,
@@ -76,12 +76,13 @@ def _wheel_travel(st, i, cp, k, ride, dt, inv_dt):
 @numba.njit(inline="always", **_JIT)
 def _wheel_force(st, i, cp, k, v, state, bar, dt):
     """Vertical force of wheel k on the body, N (TORCS 1.3.7's SimSuspUpdate and
-    SimWheelUpdateForce): spring F0 - k (x - x0) (never pulling) + two-slope damper at travel
+    SimWheelUpdateForce): spring F0 - k (x - x0) (never pulling; F0 = static load / bellcrank,
+    the car table's C_W0B) + two-slope damper at travel
     speed v, their sum never pulling, times the bellcrank, + the anti-roll bar's `bar`, N. A fully
     extended wheel moving down passes its own inertia instead. Updates the wheel's relative
     velocity; the tyre's load is this force's positive part."""
     bell = cp[i, C_BELL + k]
-    spring = max(cp[i, C_W0 + k] / bell - cp[i, C_SPRING + k] * (st[i, S_SUSP + k] - bell * cp[i, C_RIDE0 + k]), 0.0)
+    spring = max(cp[i, C_W0B + k] - cp[i, C_SPRING + k] * (st[i, S_SUSP + k] - bell * cp[i, C_RIDE0 + k]), 0.0)
     if v < 0.0:
         damp = _damper(v, cp[i, C_DREB1 + k], cp[i, C_DREB2 + k], cp[i, C_VREB + k])
     else:

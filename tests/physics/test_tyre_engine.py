@@ -82,8 +82,9 @@ def test_tyre_forces_equal_the_plain_quotients_within_rounding():
 
 
 def test_car_table_holds_the_reciprocals_the_sub_step_multiplies_by():
-    # `kernel.car_derived`: 1 / bellcrank per wheel, 1 / roll and pitch inertia, and the road
-    # gradient's 1 / (front pair x - rear pair x) = 1 / (2 wheelbase), 1 / (2 track)
+    # `kernel.car_derived`: 1 / bellcrank and static load / bellcrank per wheel, 1 / roll and
+    # pitch inertia, and the road gradient's 1 / (front pair x - rear pair x) = 1 / (2
+    # wheelbase), 1 / (2 track)
     from madsim.physics import layout as L
 
     cars = [load_car("madsim-sedan"), load_car("madsim-buggy")]
@@ -91,6 +92,8 @@ def test_car_table_holds_the_reciprocals_the_sub_step_multiplies_by():
     for i, car in enumerate(cars):
         for k in range(4):
             assert cp[i, L.C_RBELL + k] == 1.0 / cp[i, L.C_BELL + k]
+            # the spring's preload as the sub-step divided it (a quotient: the same bits)
+            assert cp[i, L.C_W0B + k] == cp[i, L.C_W0 + k] / cp[i, L.C_BELL + k]
         assert (cp[i, L.C_RIXX], cp[i, L.C_RIYY]) == (1.0 / car.ixx, 1.0 / car.iyy)
         assert cp[i, L.C_RWB2] == pytest.approx(0.5 / car.wheelbase, rel=1e-12)
         wy = cp[i, L.C_WY:L.C_WY + 4]
