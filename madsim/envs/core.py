@@ -152,6 +152,7 @@ class _StageAgent:
         self.rows = np.zeros(1, dtype=np.int64)       # the agent's car row in the episode
         # the step's outcome, as make_vec's per-episode step arrays (one position)
         self.total, self.terms = np.zeros(1), np.zeros((k, 1))
+        self._terms0 = self.terms[:, 0]       # the one position's terms (a view)
         self.ticks = np.zeros(1, dtype=np.int64)
         self.term, self.trunc = np.zeros(1, dtype=bool), np.zeros(1, dtype=bool)
         self.fired = np.zeros((1, kd), dtype=bool)
@@ -243,7 +244,7 @@ class _StageAgent:
         """(reward, reward terms by name, terminated, truncated, dones fired, ticks) of the
         step."""
         ticks = int(self.ticks[0])
-        terms = dict(zip(self.reward_names, self.terms[:, 0].tolist())) if ticks else {}
+        terms = dict(zip(self.reward_names, self._terms0.tolist())) if ticks else {}
         term, trunc = bool(self.term[0]), bool(self.trunc[0])
         fired = _WHY[self.why[0]]
         if (term or trunc) and not fired:
@@ -604,8 +605,8 @@ class MadrasCore:
         r, terms, term, trunc, fired, n = agent.result()
         if term or trunc:
             self.live = []
-        return (self._compiled_obs(0, name), r, term, trunc,
-                {"reward_terms": terms, "dones": fired, "ticks": n})
+        obs = tick.obs_rows[0].copy() if self.hub is None else self._compiled_obs(0, name)
+        return obs, r, term, trunc, {"reward_terms": terms, "dones": fired, "ticks": n}
 
     def _hand_in(self, actions: Mapping[str, Any]) -> None:
         """The live learners' actions into the compiled step's action rows, as float64; the
