@@ -246,9 +246,10 @@ class _StageAgent:
         ticks = int(self.ticks[0])
         terms = dict(zip(self.reward_names, self._terms0.tolist())) if ticks else {}
         term, trunc = bool(self.term[0]), bool(self.trunc[0])
-        fired = _WHY[self.why[0]]
-        if (term or trunc) and not fired:
-            fired = tuple(n for n, f in zip(self.done_names, self.fired[0].tolist()) if f)
+        fired = ()
+        if term or trunc:
+            fired = _WHY[int(self.why[0])] or tuple(
+                n for n, f in zip(self.done_names, self.fired[0].tolist()) if f)
         return float(self.total[0]), terms, term, trunc, fired, ticks
 
     def reset(self, k: int, row: np.ndarray, track_length: float) -> None:

@@ -220,6 +220,7 @@ def env_tick(first, tick0, ticks, st, snap, t):
     flat = f8_matrix(t, FLAT)
     race_pos = i8_vector(t, RACE_POS)
     stage = first
+    status[ST_TICK] = tick0
     if stage == ACTION:
         for j in range(m):
             if live[j] != 0:

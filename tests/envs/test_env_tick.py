@@ -312,15 +312,24 @@ def test_communication_noise_and_a_python_reward_among_learners():
     assert any(np.any(h != 0.0) for h in heard)
 
 
-def test_communication_without_noise_stops_once_for_the_messages():
-    cfg = {"server": {"max_steps": 40},
-           "agents": learners(2, communication={"senders": ["car0", "car1"],
-                                                "variables": ["peerActions"]})}
-    cfg["agents"][0]["communication"] = {"senders": ["car1"], "variables": ["peerActions"]}
-    cfg["agents"][1]["communication"] = {"senders": ["car0"], "variables": ["peerActions"]}
-    log, stages = compare_parallel(cfg, 60, wobbly)
+@pytest.mark.parametrize("space", ["SAB", "TS"])
+def test_communication_without_noise_stops_once_for_the_messages(space):
+    """Each hears the other's action; the step goes on after the messages from its first tick
+    (T-S: all 3 of its ticks)."""
+    agents = learners(2, action={"space": space}, pid={"latency": 3 if space == "TS" else 1})
+    agents[0]["communication"] = {"senders": ["car1"], "variables": ["peerActions"]}
+    agents[1]["communication"] = {"senders": ["car0"], "variables": ["peerActions", "speedX"]}
+    cfg = {"server": {"max_steps": 120}, "agents": agents}
+
+    def act(rng, name):
+        a = wobbly(rng, name)
+        return a[:2] if space == "TS" else a
+
+    log, stages = compare_parallel(cfg, 60, act)
     n = sum(1 for step in log if len(step) == 5)
     assert stages == {env_tick.COMM: n, env_tick.DONE: n}
+    assert all(info["ticks"] == (3 if space == "TS" else 1) for step in log[1:41]
+               for info in step[4].values())
 
 
 BAD = [{"car0": [0.1, 0.5, -1.0], "car1": [0.1, np.nan, -1.0], "car2": [0.0, 0.5]},
@@ -357,3 +366,19 @@ def test_actions_of_several_learners_are_taken_and_refused_as_in_python():
     assert sum(isinstance(x, str) for x in ref) == 6
     for i, (a, b) in enumerate(zip(ref, got)):
         same(a if isinstance(a, str) else list(a), b if isinstance(b, str) else list(b), f"[{i}]")
+
+
+def test_the_shipped_bottleneck_scenario_compiled_as_in_python():
+    """bottleneck_two_learners.yml: two T-S learners (latency 5) hearing each other's action,
+    two parked cars, a generated track."""
+    from pathlib import Path
+
+    from madsim.envs import config as config_module
+    cfg = Path(config_module.__file__).parent / "configs" / "bottleneck_two_learners.yml"
+
+    def act(rng, name):
+        return np.array([rng.uniform(-0.3, 0.3), rng.uniform(0.0, 1.0)])
+
+    log, stages = compare_parallel(cfg, 150, act)
+    assert stages[env_tick.COMM] == stages[env_tick.DONE] == 150
+    assert all(info["ticks"] == 5 for info in log[1][4].values())
