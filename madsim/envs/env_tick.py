@@ -349,7 +349,8 @@ class EnvTick:
             md[M_ACT_NORMALISED], md[M_COMPAT], md[M_PYTHON] = (a.normalised, a.controller.compat,
                                                               ag.python)
             self.modes.append(md)
-            self.lane_limits.append(np.array([a.controller.low, a.controller.high], dtype=np.float64))
+            self.lane_limits.append(np.array([a.controller.low, a.controller.high],
+                                             dtype=np.float64))
         self.fleet, self.traffic_rows = fleet, np.ascontiguousarray(traffic_rows, dtype=np.int64)
         traffic = (NO_TRAFFIC if self.traffic_rows.size == 0 else
                    COMPILED_TRAFFIC if fleet.compiled_only() else PYTHON_TRAFFIC)
