@@ -13,7 +13,9 @@ as in training):
   the latency loop (target >= 15,000 ticks/s);
 - `traffic`: one S-A-B learner among 9 traffic cars (target >= 3,000 steps/s). The traffic
   behaviours are madsim.agents.traffic's ConstVel when that layer exists, else a stand-in of
-  the same cost class (lane keeping at a fixed speed, a few float operations per tick).
+  the same cost class (lane keeping at a fixed speed, a few float operations per tick);
+- `multi2`, `multi3`: MadrasParallelEnv with two (three) S-A-B learners as in `sab`, no
+  traffic, 60 m apart: parallel-env steps/s (each moves every learner one tick).
 The learner's policy is a one-line lane keeper on the observation, so the car stays on the
 road; its cost (~1 us) is inside the figure. --no-contact runs the World without the contact
 solver (for comparison: the solver's broad phase runs every sub-step).
@@ -32,6 +34,9 @@ import numpy as np
 
 from madsim.envs.backends import LocalBackend
 from madsim.envs.madras_env import MadrasEnv
+from madsim.envs.parallel_env import MadrasParallelEnv
+
+CASES = ("sab", "ts", "traffic", "multi2", "multi3")
 
 
 class LaneKeeper:
@@ -55,6 +60,9 @@ def config(case: str) -> dict:
              "pid": {"latency": 5}, "target_speed": 16.0,
              "dones": ["TimeOut", "OutOfTrack", "TurnBackward"]}
     cfg = {"server": {"tracks": ["madsim-road"], "max_steps": 5000}, "agents": [agent]}
+    if case.startswith("multi"):
+        cfg["agents"] = [dict(agent, name=f"car{i}", initial_distance=[20.0 + 60 * i] * 2)
+                         for i in range(int(case[5:]))]          # 60 m apart: no contact
     if case == "traffic":
         agent["observation"] = {"mode": "SingleAgentInTrafficObs"}
         cfg["traffic"] = [{"behaviour": "ConstVel", "target_speed": 11.1,
@@ -74,9 +82,29 @@ def policy(case: str):
     return lane_keeper
 
 
+class Learners:
+    """A MadrasParallelEnv as `run` drives it: one step moves every live learner, each with the
+    same policy; `info["ticks"]` is the step's ticks."""
+
+    def __init__(self, env: MadrasParallelEnv):
+        self.env = env
+
+    def reset(self, seed=None):
+        obs, infos = self.env.reset(seed=seed)
+        return obs, infos
+
+    def step(self, actions):
+        obs, rewards, term, trunc, infos = self.env.step(actions)
+        ticks = max(info["ticks"] for info in infos.values())
+        return obs, rewards, not self.env.agents, False, {"ticks": ticks}
+
+
 def run(env, act, steps: int) -> tuple[float, float, int]:
     """Wall and CPU seconds for `steps` env.step calls (resets included), and the ticks they
     drove."""
+    if isinstance(env, Learners):
+        one = act
+        act = lambda obs: {name: one(o) for name, o in obs.items()}   # noqa: E731
     obs, _ = env.reset(seed=0)
     ticks = 0
     t0, c0 = time.perf_counter(), time.process_time()
@@ -93,16 +121,20 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=20000)
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-contact", action="store_true")
-    p.add_argument("--profile", choices=["sab", "ts", "traffic"], default=None)
+    p.add_argument("--profile", choices=CASES, default=None)
+    p.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES))
     args = p.parse_args()
     real_traffic = importlib.util.find_spec("madsim.agents.traffic") is not None
     factory = None if real_traffic else LaneKeeper
     contact = "off" if args.no_contact else "on"
-    for case in ("sab", "ts", "traffic"):
+    for case in args.cases:
         if args.profile and case != args.profile:
             continue
-        env = MadrasEnv(config(case), backend=LocalBackend(contact=not args.no_contact),
-                        traffic_factory=factory)
+        backend = LocalBackend(contact=not args.no_contact)
+        if case.startswith("multi"):
+            env = Learners(MadrasParallelEnv(config(case), backend=backend))
+        else:
+            env = MadrasEnv(config(case), backend=backend, traffic_factory=factory)
         act = policy(case)
         steps = args.steps if case != "traffic" else max(1, args.steps // 4)
         run(env, act, min(steps, 2000))                       # warm-up: numba, caches
@@ -121,6 +153,8 @@ def main() -> None:
             label = "ticks/s, T-S latency 5, 1 car"
         elif case == "sab":
             label = "steps/s, S-A-B, 1 car, SingleAgentSimpleLapObs"
+        elif case.startswith("multi"):
+            label = f"steps/s, MadrasParallelEnv, {case[5:]} S-A-B learners"
         else:
             label = (f"steps/s, S-A-B, 1 learner + 9 traffic "
                      f"({'ConstVel' if real_traffic else 'stand-in lane keeper'})")

@@ -25,12 +25,15 @@ row: the car's SCR sensors as a read-only mapping (like `SensorFrame.row`). Ever
 
 Each agent's action mapping, T-S controller, rewards and dones are the batch-first code
 make_vec runs over its episodes (`madsim.agents.component_batch`, `madsim.agents.learner_kernel`),
-here a batch of one per agent. With one learner on a World in this process (the usual
-MadrasEnv) a step is one compiled call from the action on (`madsim.envs.env_tick`: the same
-kernels in the same order, the action's check, clip and take included; ~13 us a S-A-B step on a
-slow 2-core machine, ~4 us of it the Python around the call), which leaves to Python only what
-it cannot do: action noise, Python traffic behaviours, contact near a car, sensor noise, Python
-rewards or dones.
+here a batch of one per agent. On a World in this process, with every learner's observation a
+vector, a step of all learners is one compiled call from the actions on
+(`madsim.envs.env_tick`: the same kernels in the same order, the actions' check, clip and take
+included, each learner's outcome, MADRaS's episode end, each learner's observation at the tick
+it leaves; one S-A-B learner ~13 us a step on a slow 2-core machine, ~4 us of it the Python
+around the call), which leaves to Python only what it cannot do: action noise, the messages of
+communication, Python traffic behaviours, contact near a car, sensor noise, Python rewards or
+dones. The stage-by-stage loop of `step` remains for the rest: an SCR server's cars
+(ScrBackend), TORCS's tick schedule, image observations.
 """
 
 from __future__ import annotations
@@ -63,13 +66,16 @@ from madsim.envs.config import (
     action_space,
     load_config,
 )
-from madsim.envs.env_tick import ACTION, CONTROLS, DONE, SENSE, STEP, TRAFFIC, EnvTick
+from madsim.envs.env_tick import (ACTION, COMM, CONTROLS, DONE, EPISODE_END, NO_END, OUTCOME,
+                                  SENSE, SERVER_END, ST_ANSWER, ST_LEARNER, ST_TICK, STEP, TRAFFIC,
+                                  EnvTick)
 from madsim.envs.episode import AssetCache, EpisodePlan, draw_plan, placements
 from madsim.physics.sensors import O_SX, SensorFrame
 
 __all__ = ["MadrasCore", "SensorRow", "default_traffic_factory", "episode_seed"]
 
 _STOP = (0.0, 0.0, 1.0)           # steer, accel, brake: MADRaS's "stop" action
+_WHY = {NO_END: (), EPISODE_END: ("EpisodeEnd",), SERVER_END: ("ServerEnded",)}
 _SLOT0 = np.zeros(1, dtype=np.int64)
 
 
@@ -146,13 +152,14 @@ class _StageAgent:
         self.rows = np.zeros(1, dtype=np.int64)       # the agent's car row in the episode
         # the step's outcome, as make_vec's per-episode step arrays (one position)
         self.total, self.terms = np.zeros(1), np.zeros((k, 1))
+        self._terms0 = self.terms[:, 0]       # the one position's terms (a view)
         self.ticks = np.zeros(1, dtype=np.int64)
         self.term, self.trunc = np.zeros(1, dtype=bool), np.zeros(1, dtype=bool)
         self.fired = np.zeros((1, kd), dtype=bool)
         self.running = np.zeros(1, dtype=np.int64)
         self.chosen = np.zeros((1, self.dim))  # the compiled step's checked action
         self.action: np.ndarray | None = None
-        self.ended: tuple[str, ...] = ()      # an end that is not a done: ServerEnded, EpisodeEnd
+        self.why = np.zeros(1, dtype=np.int64)  # an end that is not a done (env_tick's NO_END...)
         self.frame = None                       # the frame of its observation
 
     def array(self, action) -> np.ndarray:
@@ -190,7 +197,7 @@ class _StageAgent:
                    ts.compat, ts.low, ts.high, ts.target_speed, a.sab, a.gear, ts.lane_des,
                    ts.speed_des_kmh, self.total, self.ticks, self.term, self.trunc, self.fired,
                    self.running)
-        self.ended = ()
+        self.why[0] = NO_END
 
     def fill(self, flat: np.ndarray, u: np.ndarray) -> None:
         """Write the controls of the coming tick into the agent's row of u (N, 5) from the
@@ -221,10 +228,11 @@ class _StageAgent:
                      self.total, self.terms, self.ticks, self.term, self.trunc, self.fired,
                      u) > 0
 
-    def end(self, why: str, frame, u: np.ndarray, *, truncated: bool) -> None:
-        """End the agent's step for a reason that is not one of its dones (the server ended
-        the race; another learner's done ended the episode); with u, its car stops."""
-        self.ended = (why,)
+    def end(self, why: int, frame, u: np.ndarray, *, truncated: bool) -> None:
+        """End the agent's step for a reason that is not one of its dones (SERVER_END: the
+        server ended the race; EPISODE_END: another learner's done ended the episode); with u,
+        its car stops (as env_tick's `_episode_end`)."""
+        self.why[0] = why
         self.term[0], self.trunc[0] = not truncated, truncated
         self.frame = frame
         if u is not None:
@@ -236,18 +244,19 @@ class _StageAgent:
         """(reward, reward terms by name, terminated, truncated, dones fired, ticks) of the
         step."""
         ticks = int(self.ticks[0])
-        terms = dict(zip(self.reward_names, self.terms[:, 0].tolist())) if ticks else {}
+        terms = dict(zip(self.reward_names, self._terms0.tolist())) if ticks else {}
         term, trunc = bool(self.term[0]), bool(self.trunc[0])
-        fired = self.ended
-        if (term or trunc) and not fired:
-            fired = tuple(n for n, f in zip(self.done_names, self.fired[0].tolist()) if f)
+        fired = ()
+        if term or trunc:
+            fired = _WHY[int(self.why[0])] or tuple(
+                n for n, f in zip(self.done_names, self.fired[0].tolist()) if f)
         return float(self.total[0]), terms, term, trunc, fired, ticks
 
     def reset(self, k: int, row: np.ndarray, track_length: float) -> None:
         """Start an episode with the agent's car in row k from its first sensor row (79,) on a
         track of length m."""
         self.rows[0] = k
-        self.ended = ()
+        self.why[0] = NO_END
         self.rewards.start(0, self.reward_components, track_length)
         self.dones.start(0, self.done_components, track_length)
         self.actions.start(0, row, self.target_speed, self.noise_std)
@@ -307,6 +316,7 @@ class MadrasCore:
         self._end_together = False   # server.episode_end "any": the first done ends every learner
         self.plan: EpisodePlan | None = None
         self._compiled: EnvTick | None = None      # the episode's compiled step, if any
+        self._learner: dict[str, int] = {}         # its learners' indices, by name
         self.fleet = TrafficFleet(0)
         self.stage: _Stage = self._stage(0)
 
@@ -421,19 +431,21 @@ class MadrasCore:
         return obs, infos
 
     def _compiled_step(self) -> EnvTick | None:
-        """The episode's compiled step (`madsim.envs.env_tick`) where it applies: one learner
-        without communication, a vector observation, a World in this process with contact
-        and fixed 0.02 s ticks. Else None: the step runs stage by stage in Python."""
+        """The episode's compiled step (`madsim.envs.env_tick`) where it applies: every
+        learner's observation a vector, a World in this process with contact and fixed 0.02 s
+        ticks. Else None: the step runs stage by stage in Python."""
         backend = self.backend
-        if len(self.live) != 1 or self.hub is not None or not isinstance(backend, LocalBackend) \
-                or backend.clock is not None or backend.world.tick_args is None:
+        if not isinstance(backend, LocalBackend) or backend.clock is not None \
+                or backend.world.tick_args is None:
             return None
-        name = self.live[0]
-        builder = self.builders[name]
-        if not isinstance(builder, ObservationBuilder):
+        builders = [self.builders[name] for name in self.live]
+        if not all(isinstance(b, ObservationBuilder) for b in builders):
             return None
-        tick = EnvTick(backend.world, backend.suite, self.controls, self.stage.agents[name],
-                       builder, self.frame.flat, self.fleet, self._traffic_rows)
+        tick = EnvTick(backend.world, backend.suite, self.controls,
+                       [self.stage.agents[name] for name in self.live], builders,
+                       self.frame.flat, self.fleet, self._traffic_rows,
+                       together=self._end_together, comm=self.hub is not None)
+        self._learner = {name: j for j, name in enumerate(self.live)}
         self.frame = SensorFrame(tick.flat, tick.cars)      # the latest sensors, in place
         return tick
 
@@ -497,29 +509,27 @@ class MadrasCore:
                 raise ValueError(f"action for unknown agent {name!r}; agents: {self.names}")
         tick = self._compiled
         if tick is not None and tick.fused:
-            name = self.live[0]
-            if name not in actions:
-                raise ValueError(f"no action for live agent {name!r}")
-            obs, reward, term, trunc, info = self.step_one(name, actions[name])
-            return {name: obs}, {name: reward}, {name: term}, {name: trunc}, {name: info}
+            if tick.m == 1:
+                name = self.live[0]
+                if name not in actions:
+                    raise ValueError(f"no action for live agent {name!r}")
+                obs, reward, term, trunc, info = self.step_one(name, actions[name])
+                return {name: obs}, {name: reward}, {name: term}, {name: trunc}, {name: info}
+            self._hand_in(actions)
+            return self._step_compiled(ACTION)
         agents = self.stage.agents
         chosen = {}
         for name in self.live:
             if name not in actions:
                 raise ValueError(f"no action for live agent {name!r}")
             chosen[name] = agents[name].check(actions[name])
-        agent_rows = self.agent_rows
         if self.hub is not None:
-            rows = self.rows
-            self.hub.send({n: rows[agent_rows[n]] for n in self.live},
-                          {n: a.tolist() for n, a in chosen.items()})
+            self._send(chosen)
         stepping = [agents[name] for name in self.live]
         for agent in stepping:
             agent.begin(chosen[agent.name], self.action_rng)
         if tick is not None:
-            name = stepping[0].name
-            obs, reward, term, trunc, info = self._step_compiled(stepping[0], CONTROLS)
-            return {name: obs}, {name: reward}, {name: term}, {name: trunc}, {name: info}
+            return self._step_compiled(CONTROLS)
         running = stepping
         u = self.controls
         backend = self.backend
@@ -534,7 +544,7 @@ class MadrasCore:
             self.tick += 1
             if new is None:                          # the server ended the race
                 for agent in running:
-                    agent.end("ServerEnded", frame, None, truncated=True)
+                    agent.end(SERVER_END, frame, None, truncated=True)
                 running = []
                 break
             frame = new
@@ -549,7 +559,7 @@ class MadrasCore:
                     agent.frame = frame
             if self._end_together and len(still) < len(running):
                 for agent in still:    # MADRaS: the first done ends every learner's episode
-                    agent.end("EpisodeEnd", frame, u, truncated=False)
+                    agent.end(EPISODE_END, frame, u, truncated=False)
                 still = []
             running = still
             if not running:
@@ -557,6 +567,7 @@ class MadrasCore:
         self.frame = frame
         for agent in running:
             agent.frame = frame
+        agent_rows = self.agent_rows
         obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}
         for agent in stepping:
             name = agent.name
@@ -571,49 +582,109 @@ class MadrasCore:
             self.progress += 1
         return obs, rewards, terminated, truncated, infos
 
+    def _send(self, chosen: Mapping[str, np.ndarray]) -> None:
+        """Communication: the live learners' messages of this step (their sensors before it,
+        their checked actions) into the hub."""
+        rows, agent_rows = self.rows, self.agent_rows
+        self.hub.send({n: rows[agent_rows[n]] for n in self.live},
+                      {n: a.tolist() for n, a in chosen.items()})
+
     def step_one(self, name: str, action):
         """`step({name: action})` for `name`, the one learner (MadrasEnv's door), as (obs,
         reward, terminated, truncated, info): on the fused compiled step no dict is built."""
         tick = self._compiled
-        if tick is None or not tick.fused or not self.live:
+        if tick is None or not tick.fused or tick.m != 1 or not self.live:
             obs, rewards, terminated, truncated, infos = self.step({name: action})
             return obs[name], rewards[name], terminated[name], truncated[name], infos[name]
         # the compiled step from ACTION: the action's check, clip and take in the call
-        agent = tick.agent
+        agent = tick.agents[0]
         a = action
         if type(a) is not np.ndarray or a.dtype.kind != "f" or a.shape != agent.shape:
             a = agent.array(action)           # anything else as check() takes it, or its error
-        tick.action_row[:] = a                # float64, as np.asarray(a, dtype=np.float64)
-        return self._step_compiled(agent, ACTION)
+        tick.action_rows[0][:] = a            # float64, as np.asarray(a, dtype=np.float64)
+        self._run_compiled(ACTION)
+        r, terms, term, trunc, fired, n = agent.result()
+        if term or trunc:
+            self.live = []
+        obs = tick.obs_rows[0].copy() if self.hub is None else self._compiled_obs(0, name)
+        return obs, r, term, trunc, {"reward_terms": terms, "dones": fired, "ticks": n}
 
-    def _step_compiled(self, agent: _StageAgent, first: int):
+    def _hand_in(self, actions: Mapping[str, Any]) -> None:
+        """The live learners' actions into the compiled step's action rows, as float64; the
+        stage path's ValueError for the first learner (in order) whose action is missing, not
+        numeric, of another shape or, before it, not finite."""
+        tick = self._compiled
+        agents, index = tick.agents, self._learner
+        for i, name in enumerate(self.live):
+            j = index[name]
+            agent = agents[j]
+            try:
+                if name not in actions:
+                    raise ValueError(f"no action for live agent {name!r}")
+                a = actions[name]
+                if type(a) is not np.ndarray or a.dtype.kind != "f" or a.shape != agent.shape:
+                    a = agent.array(a)
+            except ValueError:
+                for earlier in self.live[:i]:    # the stage path checks them in order
+                    agents[index[earlier]].check(actions[earlier])
+                raise
+            tick.action_rows[j][:] = a
+
+    def _compiled_obs(self, j: int, name: str) -> np.ndarray:
+        """Learner j's observation after the compiled step (a copy), its messages appended."""
+        obs = self._compiled.obs_rows[j].copy()
+        if self.hub is not None and name in self.hub.buffers:
+            obs = np.concatenate([obs, self.hub.vector(name)])
+        return obs
+
+    def _run_compiled(self, first: int) -> None:
         """`step`'s ticks as `EnvTick` calls from stage `first` (one, unless a stage is left to
-        Python: traffic controls, the contact narrow phase, sensor noise, Python rewards or
-        dones): (obs, reward, terminated, truncated, info)."""
+        Python: the messages, traffic controls, the contact narrow phase, sensor noise, Python
+        rewards or dones)."""
         tick = self._compiled
         ticks = self.ticks_per_step
         stage = tick.run(first, 0, ticks)
         while stage != DONE:
-            k = int(tick.status[0])
+            k = int(tick.status[ST_TICK])
             if stage == ACTION:                      # nothing has changed
-                raise agent.non_finite(k, tick.action_row[k])
-            if stage == TRAFFIC:
+                j = int(tick.status[ST_LEARNER])
+                raise tick.agents[j].non_finite(k, tick.action_rows[j][k])
+            if stage == COMM:
+                agents, index = tick.agents, self._learner
+                self._send({n: agents[index[n]].chosen[0] for n in self.live})
+            elif stage == TRAFFIC:
                 self._traffic_controls(self.frame)
             elif stage == STEP:
                 tick.finish_step()
             elif stage == SENSE:
                 self.backend.suite.finish_frame(tick.flat, tick.cars, tick.due)
-            else:                                   # OUTCOME
-                tick.status[1] = agent.outcome(tick.flat, tick.hits, self.controls, k == 0)
+            else:                                   # OUTCOME: a learner's Python reward or done
+                agent = tick.agents[int(tick.status[ST_LEARNER])]
+                tick.status[ST_ANSWER] = agent.outcome(tick.flat, tick.hits, self.controls, k == 0)
+                stage = tick.run(OUTCOME, k, ticks)     # on from that learner's answer
+                continue
             stage = tick.run(stage + 1, k, ticks)
-        r, terms, term, trunc, fired, n = agent.result()
-        self.tick += n                   # one learner: its ticks are the step's ticks
-        if term or trunc:
-            self.live = []
+        self.tick += int(tick.status[ST_TICK]) + 1
         if self._count_steps:
             self.progress += 1
-        return (tick.obs_row.copy(), r, term, trunc,
-                {"reward_terms": terms, "dones": fired, "ticks": n})
+
+    def _step_compiled(self, first: int):
+        """`step` on the compiled step from stage `first`: (obs, rewards, terminated,
+        truncated, infos) of the learners live at its start."""
+        stepping = self.live
+        self._run_compiled(first)
+        tick, index = self._compiled, self._learner
+        obs, rewards, terminated, truncated, infos = {}, {}, {}, {}, {}
+        for name in stepping:
+            j = index[name]
+            r, terms, term, trunc, fired, n = tick.agents[j].result()
+            obs[name] = self._compiled_obs(j, name)
+            rewards[name] = r
+            terminated[name] = term
+            truncated[name] = trunc
+            infos[name] = {"reward_terms": terms, "dones": fired, "ticks": n}
+        self.live = [n for n in stepping if not (terminated[n] or truncated[n])]
+        return obs, rewards, terminated, truncated, infos
 
     def close(self) -> None:
         self.backend.close()
