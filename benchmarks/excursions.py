@@ -25,6 +25,9 @@ at a message with a wheel off after `QUIET` messages with none, at over `MIN_KMH
 Run: python benchmarks/excursions.py [--runs wheel-2,street-1] [--leads 3,6,10,15] [--windows]
      [--csv out.csv] [--scale-surface "sand:friction=0.9,grass:roughness=0"]
      (--scale-surface: an experiment, a material's surf column scaled in this replay only)
+     python benchmarks/excursions.py --table g-track-2__car1-trb1__150:2246:3:50
+     (one replay message by message: both runs' heading, speeds, trackPos, z, wheel spins and
+     the materials under TORCS's wheels, to see at which message and on what they part)
 Prints (with --windows) one line per window, then per material class, per class and car and per
 class by the share of wheel-messages off: the means of TORCS's and madsim's heading and speed
 changes, the slope of madsim's heading change on TORCS's (least squares through 0), their
@@ -63,7 +66,7 @@ REGRESS_DPSI = 0.1
 CONTROL_EVERY = 400
 """Messages between two on-road control windows of one trace."""
 COLUMNS = ("curLapTime", "lastLapTime", "damage", "distFromStart", "speedX", "speedY", "angle", "trackPos", "fuel",
-           "gear", "rpm", "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3",
+           "gear", "rpm", "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3", "z",
            "accel", "brake", "gear_cmd", "steer", "clutch")
 SURF_COLUMNS = {"friction": 0, "rolling": 1, "roughness": 2, "wavenumber": 3}
 
@@ -200,7 +203,7 @@ def place_on(world, track, cp_row, rec: dict, j: int, t: np.ndarray) -> None:
 
 def drive(world, suite, rec: dict, j0: int, j1: int, steps: np.ndarray) -> dict[str, np.ndarray]:
     """Open loop from message j0 to j1 with TORCS's commands; madsim's sensors per message."""
-    keep = {c: [] for c in ("distFromStart", "speedX", "speedY", "angle", "trackPos",
+    keep = {c: [] for c in ("distFromStart", "speedX", "speedY", "angle", "trackPos", "z",
                             "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3")}
     u = np.zeros((1, 5))
     for j in range(j0, j1 + 1):
@@ -230,10 +233,10 @@ def figures(track, run: dict, lead: int) -> dict[str, np.ndarray]:
     return out
 
 
-def trace_windows(path: Path, leads: tuple[int, ...], scale: list[tuple[str, str, float]]) -> list[Window]:
-    """Every window of one trace, madsim's figures averaged over replays placed `leads`
-    messages before the start (control windows: the first lead only); their spread in
-    `Window.spread`."""
+def replay_setup(path: Path, scale: list[tuple[str, str, float]]):
+    """(track, car name, World with the trace's car and TORCS's grid, its SensorSuite, the record,
+    message times, sub-steps per message) of one trace; `scale` ((material part, surf column,
+    factor), ...) scales the surf table of this World only."""
     from madsim.cars import load_car
     from madsim.physics.sensors import SensorSuite
     from madsim.physics.world import World
@@ -248,10 +251,59 @@ def trace_windows(path: Path, leads: tuple[int, ...], scale: list[tuple[str, str
             if material in sf.name.lower():
                 world._surf[i, SURF_COLUMNS[col]] *= factor
     suite = SensorSuite(world)
-    cp_row = world._cp[0]
     rec = read_trace(path)
     t = message_times(rec)
-    steps = substeps_of(t)
+    return track, car_name, world, suite, rec, t, substeps_of(t)
+
+
+def message_table(path: Path, start: int, lead: int, horizon: int,
+                  scale: list[tuple[str, str, float]]) -> list[dict]:
+    """One replay, message by message: madsim's car placed `lead` messages before message
+    `start` of the trace and driven open loop to `start + horizon`. Per message from the
+    placement on: TORCS's and madsim's heading change since the placement (rad), speedX,
+    speedY (km/h), trackPos, z (m), the four wheel spins (rad/s), and the materials under
+    TORCS's four wheels (FR, FL, RR, RL)."""
+    track, _, world, suite, rec, t, steps = replay_setup(path, scale)
+    j0, j1 = start - lead, start + horizon
+    place_on(world, track, world._cp[0], rec, j0, t)
+    suite.reset()
+    m = drive(world, suite, rec, j0, j1, steps)
+    torcs = {c: rec[c][j0:j1 + 1] for c in m}
+    psi_t = heading_change(track.heading_at(torcs["distFromStart"]), torcs["angle"])
+    psi_m = heading_change(track.heading_at(m["distFromStart"]), m["angle"])
+    under = wheel_surfaces(track, world._cp[0],
+                           {c: rec[c][j0:j1 + 1] for c in ("distFromStart", "trackPos", "angle")})
+    rows = []
+    for k in range(j1 - j0 + 1):
+        row = {"msg": j0 + k, "under": [track.surfaces[i].name for i in under[k]],
+               "steer": float(rec["steer"][j0 + k]), "accel": float(rec["accel"][j0 + k])}
+        for who, d, psi in (("torcs", torcs, psi_t), ("madsim", m, psi_m)):
+            row[who] = {"dpsi": float(psi[k]), "speedX": float(d["speedX"][k]), "speedY": float(d["speedY"][k]),
+                        "trackPos": float(d["trackPos"][k]), "z": float(d["z"][k]),
+                        "spins": [float(d[f"wheelSpinVel_{q}"][k]) for q in range(4)]}
+        rows.append(row)
+    return rows
+
+
+def print_table(rows: list[dict]) -> None:
+    print("| msg | steer | dpsi T / m rad | speedX T / m km/h | speedY T / m | trackPos T / m | z T / m m | "
+          "spins FR FL RR RL, T / m rad/s | under TORCS's wheels (FR, FL, RR, RL) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        t, m = r["torcs"], r["madsim"]
+        print(f"| {r['msg']} | {r['steer']:+.2f} | {t['dpsi']:+.4f} / {m['dpsi']:+.4f} | "
+              f"{t['speedX']:.1f} / {m['speedX']:.1f} | "
+              f"{t['speedY']:+.1f} / {m['speedY']:+.1f} | {t['trackPos']:.3f} / {m['trackPos']:.3f} | "
+              f"{t['z']:.3f} / {m['z']:.3f} | {' '.join(f'{w:.1f}' for w in t['spins'])} / "
+              f"{' '.join(f'{w:.1f}' for w in m['spins'])} | {', '.join(r['under'])} |")
+
+
+def trace_windows(path: Path, leads: tuple[int, ...], scale: list[tuple[str, str, float]]) -> list[Window]:
+    """Every window of one trace, madsim's figures averaged over replays placed `leads`
+    messages before the start (control windows: the first lead only); their spread in
+    `Window.spread`."""
+    track, car_name, world, suite, rec, t, steps = replay_setup(path, scale)
+    cp_row = world._cp[0]
     surf_idx = wheel_surfaces(track, cp_row, rec)
     yaw = heading_change(track.heading_at(rec["distFromStart"]), rec["angle"])
     horizon = max(HORIZONS)
@@ -421,6 +473,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--windows", action="store_true", help="print every window, not only the summary")
     ap.add_argument("--csv", default="", help="write every window's figures to this file")
     ap.add_argument("--traces", default=str(fidelity.TRACES), help="folder of the real-TORCS traces")
+    ap.add_argument("--table", default="", help="one replay message by message instead: 'TRACE:MSG[:LEAD[:HORIZON]]' "
+                    "(TRACE a part of a trace's name; LEAD 3, HORIZON 50 unless given)")
     a = ap.parse_args(argv)
     paths = sorted(p for p in Path(a.traces).glob("*.csv.gz") if "__full" not in p.name)
     keys = [k for k in a.runs.split(",") if k]
@@ -434,6 +488,18 @@ def main(argv: list[str] | None = None) -> int:
         name, rest = part.split(":")
         col, factor = rest.split("=")
         scale.append((name.lower(), col, float(factor)))
+    if a.table:
+        key, *nums = a.table.split(":")
+        found = [p for p in paths if key in p.name]
+        if len(found) != 1:
+            print(f"--table: {len(found)} traces match {key!r}", file=sys.stderr)
+            return 2
+        if not 1 <= len(nums) <= 3:
+            print("--table: TRACE:MSG[:LEAD[:HORIZON]]", file=sys.stderr)
+            return 2
+        start, lead, horizon = [int(x) for x in nums] + [3, 50][len(nums) - 1:]
+        print_table(message_table(found[0], start, lead, horizon, scale))
+        return 0
     windows: list[Window] = []
     for p in paths:
         ws = trace_windows(p, tuple(int(x) for x in a.leads.split(",")), scale)

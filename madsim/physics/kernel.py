@@ -58,7 +58,7 @@ from madsim.physics.layout import (  # noqa: I001 - column indices, see layout.p
     T_TANGENT_R, T_WIDTH, U_ACCEL, U_BRAKE, U_CLUTCH, U_GEAR, U_STEER,
 )
 from madsim.physics.finish import cross_forward, finish_rule, finished, takes_damage
-from madsim.physics.suspension import G, body_vertical, ground_contact, relief, surface_index, wheel_loads
+from madsim.physics.suspension import G, body_vertical, ground_contact, relief, surface_index, wheel_at, wheel_loads
 from madsim.tracks.kernels import locate as _locate  # the one piece walk (track spec 10.1)
 from madsim.tracks.kernels import piece_local as _piece_local
 from madsim.tracks.kernels import wrap_angle as _wrap
@@ -206,7 +206,8 @@ def _wheel_surfaces(st, i, cp, pt, surf, p, q, n, cpsi, spsi, half):
     for k in range(4):
         xw = cp[i, C_A] if k < 2 else -cp[i, C_B]
         yw = cp[i, C_WY + k]
-        j = surface_index(pt, p, q + xw * cpsi - yw * spsi, n + xw * spsi + yw * cpsi, half)
+        da, dn = wheel_at(pt, p, n, xw * cpsi - yw * spsi, xw * spsi + yw * cpsi)
+        j = surface_index(pt, p, q + da, n + dn, half)
         st[i, S_FRIC + k] = surf[j, 0]
         st[i, S_ROLL + k] = surf[j, 1]
 

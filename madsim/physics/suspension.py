@@ -111,6 +111,20 @@ def on_piece(pt, p, q):
 
 
 @numba.njit(inline="always", **_JIT)
+def wheel_at(pt, p, n, dx, dy):
+    """(along, across) offset in track coordinates (m of the centre line's distance, m of lateral
+    offset) of a body point dx ahead and dy to the left of a CG at lateral offset n on piece p,
+    (dx, dy) already turned into the track's frame at the CG. On a curve of curvature c a
+    tangent step dx covers dx / g of the centre line and drops c dx^2 / (2 g) towards the
+    outside, g = 1 - c (n + dy): the exact arc's first terms (along within (dx / g) u^2 / 3,
+    u = c dx / g: 0.5 mm on g-track-2's curb, 4 mm 1.6 m from the CG 8.4 m inside a 30 m turn;
+    across within 0.1 mm). TORCS locates each wheel at its global position. g is kept >= 0.1."""
+    c = pt[p, P_CURV]
+    g = max(1.0 - c * (n + dy), 0.1)
+    return dx / g, dy - 0.5 * c * dx * dx / g
+
+
+@numba.njit(inline="always", **_JIT)
 def _road_z(pt, tsc, p, q, n):
     """Road height, m, at distance q along piece p (may run one piece over either end) and
     lateral offset n (track spec 5.4: linear right edge + banking, as `kernel.track_observed`)."""
@@ -248,9 +262,10 @@ def _relief_terms(pt, surf, tsc, p, q, n, main):
 @numba.njit(inline="always", **_JIT)
 def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
     """Road height under wheel k of car i (its static x, y from the CG (p, q, n: `_cg_on_piece`)
-    along the track frame), without curbs or roughness."""
+    in the track frame, located by `wheel_at`), without curbs or roughness."""
     xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-    return _road_z(pt, tsc, p, q + xk * cpsi - yk * spsi, n + xk * spsi + yk * cpsi)
+    da, dn = wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+    return _road_z(pt, tsc, p, q + da, n + dn)
 
 
 @numba.njit(inline="always", **_JIT)
@@ -258,8 +273,9 @@ def _wheel_road_terms(cp, pt, surf, tsc, i, k, p, q, n, cpsi, spsi):
     """Under wheel k of car i (CG at p, q, n: `_cg_on_piece`; (cpsi, spsi): cos, sin of yaw -
     track heading): the smooth road's height (m) and the relief's `_relief_terms`."""
     xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-    pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
-    nk = n + xk * spsi + yk * cpsi
+    da, dn = wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+    pk, qk = on_piece(pt, p, q + da)
+    nk = n + dn
     base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, pk, qk, nk, False)
     return _road_z_at(pt, tsc, pk, qk, nk), base, a, kt, kl, curb, d, bw
 
@@ -385,8 +401,9 @@ def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
             continue
         z += cp[i, C_PACK + k] - st[i, S_RIDE + k]
         xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-        pk, qk = on_piece(pt, p, q + xk * cpsi - yk * spsi)
-        nk = n + xk * spsi + yk * cpsi
+        da, dn = wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+        pk, qk = on_piece(pt, p, q + da)
+        nk = n + dn
         # the road's normal: the piece's chord along the track at the wheel's offset (per metre
         # of that offset's own length on a curve), its cross slope (banking) across, a curb's
         # rise on a curb

@@ -116,3 +116,46 @@ def test_wheel_surfaces_find_the_wheels_off_the_road(exc):
     road = track.surface_at(s, 0.0)
     assert list(under[0] != road[0]) == [True, False, True, False]      # FR, FL, RR, RL
     assert not np.any(under[1] != road[1])
+
+
+def test_message_table_starts_on_the_traces_state_and_follows_a_straight_run(exc, tmp_path):
+    # a made-up trace of the bundled sedan running straight down madsim-road's first straight at
+    # 72 km/h, centred, wheels rolling, no commands but a light throttle: the table's first row
+    # is the placement (madsim's figures equal TORCS's, heading change 0), it has lead + horizon
+    # + 1 rows, and over 0.2 s madsim's car stays straight and near the trace's speed
+    import csv
+    import gzip
+
+    from madsim.tracks import load_track
+
+    track = load_track("madsim-road")
+    n = exc.fidelity.COUNTDOWN_MESSAGES + 40
+    v = 20.0                                           # m/s
+    s0 = 20.0
+    path = tmp_path / "madsim-road__madsim-sedan__100.csv.gz"
+    with gzip.open(path, "wt", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(exc.COLUMNS)
+        for j in range(n):
+            k = j - exc.fidelity.COUNTDOWN_MESSAGES
+            t = 0.02 * max(k, 0)
+            row = {"curLapTime": t, "lastLapTime": 0.0, "damage": 0.0, "distFromStart": s0 + v * t,
+                   "speedX": 3.6 * v, "speedY": 0.0, "angle": 0.0, "trackPos": 0.0, "fuel": 40.0, "gear": 3.0,
+                   "rpm": 5000.0, "z": 0.3, "accel": 0.2, "brake": 0.0, "gear_cmd": 3.0, "steer": 0.0, "clutch": 0.0}
+            for q in range(4):
+                row[f"wheelSpinVel_{q}"] = v / 0.3
+            w.writerow([row[c] for c in exc.COLUMNS])
+    assert track.curvature_at(np.array([s0, s0 + v * 0.8])).max() == 0.0     # a straight throughout
+    rows = exc.message_table(path, 5, 2, 8, [])
+    assert len(rows) == 2 + 8 + 1
+    first = rows[0]
+    assert first["msg"] == 3
+    for key in ("speedX", "speedY", "trackPos"):
+        assert first["madsim"][key] == pytest.approx(first["torcs"][key], abs=1e-9)
+    np.testing.assert_allclose(first["madsim"]["spins"], first["torcs"]["spins"], atol=1e-9)
+    assert first["madsim"]["dpsi"] == 0.0 and first["torcs"]["dpsi"] == 0.0
+    road = track.surfaces[int(track.surface_at(np.array([s0]), 0.0)[0])].name
+    assert all(r["under"] == [road] * 4 for r in rows)
+    last = rows[-1]["madsim"]
+    assert abs(last["dpsi"]) < 1e-3 and abs(last["trackPos"]) < 1e-3
+    assert last["speedX"] == pytest.approx(72.0, abs=2.0)

@@ -59,11 +59,11 @@ from madsim.tracks import load_track
 
 EXPECTED = {
     "one_car": "6b76b6190821ba6f860b4fe64d85f182544b0ed7440938ac74819d0819586745",
-    "six_contact": "b5add59421dadd839028390ca63213e21f9b63034d5c2c71b495e9dfee565753",
+    "six_contact": "2c25d65584b3d44991556169e7f3f750c3b6bbb5b4a6465ffe064af8c0be8fae",
     "four_wd": "e9f11b1b194666d081cd68e712023e1d93e4768cebd87946a9b098b7d8a800b0",
     "vec_traffic": "c8414e136d35e8e1fb94abd7be8c468e99d31ca8db2bc4d9fd085a48d6e1ebbd",
-    "env_ts": "2250f9c0cd5ab079a1ca67aef320aad8729bfc5270a8dece8c7839340ea0ed6b",
-    "rough_track": "0683c6a98693fae73f2b17401c5cacceb3f3de76e720ec92b2844550f70bc17a",
+    "env_ts": "d34969b88b212353121c5b634e664601b482bee0684fbffdafc5f28366bc1f85",
+    "rough_track": "2bbd0cadf966d09e65cbc162870ee08f203b434e13028ccede668817f84bfe6f",
 }
 
 
