@@ -1,7 +1,7 @@
 """`WorldBatch`: many independent episodes advanced together, each exactly as its own `World`.
 
 A batch has `n_slots` slots; slot e holds one episode: up to `capacity` cars on one track, in
-rows `e * capacity ...` of shared arrays (`state` (C, N_STATE) Fortran order, `controls`
+rows `e * capacity ...` of shared arrays (`state` (C, N_STATE) C order, `controls`
 (C, 5), `sensors` (C, 79) wire order, C = n_slots * capacity; unused rows are never touched).
 Slots may be on different tracks and hold different cars; cars of different slots never see
 each other (no contact, no opponents reading, separate race positions).
