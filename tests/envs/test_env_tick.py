@@ -4,6 +4,8 @@ through the stages the compiled call leaves to Python (communication, traffic co
 contact near a car, sensor noise, a reward written in Python), with one, two and three
 learners, learners leaving one by one or all with the first done, and through resets."""
 
+import contextlib
+
 import numpy as np
 import pytest
 
@@ -14,35 +16,41 @@ from madsim.envs.parallel_env import MadrasParallelEnv
 from tests.envs.test_vector import same, throttle_reward
 
 
+@contextlib.contextmanager
+def counted_stages():
+    """EnvTick.run counting the stages it leaves to Python: yields the dict stage -> count."""
+    stages = {}
+    run = env_tick.EnvTick.run
+
+    def counting(self, first, tick0, ticks):
+        stage = run(self, first, tick0, ticks)
+        stages[stage] = stages.get(stage, 0) + 1
+        return stage
+    env_tick.EnvTick.run = counting
+    try:
+        yield stages
+    finally:
+        env_tick.EnvTick.run = run
+
+
 def episode_log(cfg, steps, actions, *, compiled, seed=5):
     """Everything `steps` env steps return (resets included), and the Python stages counted."""
     env = MadrasEnv(cfg)
-    stages = {}
-    if compiled:
-        run = env_tick.EnvTick.run
-
-        def counting(self, first, tick0, ticks):
-            stage = run(self, first, tick0, ticks)
-            stages[stage] = stages.get(stage, 0) + 1
-            return stage
-        env_tick.EnvTick.run = counting
-    else:
-        original = MadrasCore._compiled_step
+    original = MadrasCore._compiled_step
+    if not compiled:
         MadrasCore._compiled_step = lambda self: None
     try:
-        rng = np.random.default_rng(seed)
-        log = [env.reset(seed=seed)]
-        assert (env.core._compiled is not None) == compiled
-        for _ in range(steps):
-            out = env.step(actions(rng))
-            log.append(out)
-            if out[2] or out[3]:
-                log.append(env.reset())
+        with counted_stages() as stages:
+            rng = np.random.default_rng(seed)
+            log = [env.reset(seed=seed)]
+            assert (env.core._compiled is not None) == compiled
+            for _ in range(steps):
+                out = env.step(actions(rng))
+                log.append(out)
+                if out[2] or out[3]:
+                    log.append(env.reset())
     finally:
-        if compiled:
-            env_tick.EnvTick.run = run
-        else:
-            MadrasCore._compiled_step = original
+        MadrasCore._compiled_step = original
     return log, stages
 
 
@@ -138,18 +146,29 @@ def test_the_compiled_call_takes_and_refuses_actions_as_the_python_step_does():
         env = MadrasEnv(cfg)
         if not compiled:
             env.core._compiled_step = lambda: None
-        log = [env.reset(seed=3)]
-        for a in ACTIONS:
-            try:
-                log.append(env.step(a))
-            except ValueError as exc:
-                log.append(str(exc))
-            log.append(env.step(np.array([0.0, 0.6, -1.0])))
-        assert (env.core._compiled is not None) == compiled
-        return log
+        return refusals(env, compiled, ACTIONS, np.array([0.0, 0.6, -1.0]))
 
-    ref, got = drive(False), drive(True)
-    assert sum(isinstance(x, str) for x in ref) == 7
+    same_refusals(drive(False), drive(True), 7)
+
+
+def refusals(env, compiled, tries, good):
+    """After a reset, each action (or action dict) of `tries` followed by the action `good`:
+    what the steps return, or a refused step's ValueError text."""
+    log = [env.reset(seed=3)]
+    for a in tries:
+        try:
+            log.append(env.step(a))
+        except ValueError as exc:
+            log.append(str(exc))
+        log.append(env.step(good))
+    assert (env.core._compiled is not None) == compiled
+    return log
+
+
+def same_refusals(ref, got, refused):
+    """Two `refusals` logs equal entry by entry, `refused` steps refused in each."""
+    assert sum(isinstance(x, str) for x in ref) == refused
+    assert len(ref) == len(got)
     for i, (a, b) in enumerate(zip(ref, got)):
         same(a if isinstance(a, str) else list(a), b if isinstance(b, str) else list(b), f"[{i}]")
 
@@ -181,15 +200,7 @@ def parallel_log(cfg, steps, policy, *, compiled, seed=5, factory=None):
     env = MadrasParallelEnv(cfg, traffic_factory=factory)
     if not compiled:
         stage_path(env)
-    stages = {}
-    run = env_tick.EnvTick.run
-
-    def counting(self, first, tick0, ticks):
-        stage = run(self, first, tick0, ticks)
-        stages[stage] = stages.get(stage, 0) + 1
-        return stage
-    env_tick.EnvTick.run = counting
-    try:
+    with counted_stages() as stages:
         rng = np.random.default_rng(seed)
         log = [env.reset(seed=seed)]
         assert (env.core._compiled is not None) == compiled
@@ -198,8 +209,6 @@ def parallel_log(cfg, steps, policy, *, compiled, seed=5, factory=None):
                 log.append(env.reset())
                 continue
             log.append(env.step({name: policy(rng, name) for name in env.agents}))
-    finally:
-        env_tick.EnvTick.run = run
     return log, stages
 
 
@@ -351,21 +360,10 @@ def test_actions_of_several_learners_are_taken_and_refused_as_in_python():
         env = MadrasParallelEnv(cfg)
         if not compiled:
             stage_path(env)
-        log = [env.reset(seed=3)]
         good = {name: np.array([0.0, 0.6, -1.0]) for name in env.possible_agents}
-        for actions in BAD:
-            try:
-                log.append(env.step(actions))
-            except ValueError as exc:
-                log.append(str(exc))
-            log.append(env.step(good))
-        assert (env.core._compiled is not None) == compiled
-        return log
+        return refusals(env, compiled, BAD, good)
 
-    ref, got = drive(False), drive(True)
-    assert sum(isinstance(x, str) for x in ref) == 6
-    for i, (a, b) in enumerate(zip(ref, got)):
-        same(a if isinstance(a, str) else list(a), b if isinstance(b, str) else list(b), f"[{i}]")
+    same_refusals(drive(False), drive(True), 6)
 
 
 def test_the_shipped_bottleneck_scenario_compiled_as_in_python():
