@@ -125,6 +125,15 @@ def wheel_at(pt, p, n, dx, dy):
 
 
 @numba.njit(inline="always", **_JIT)
+def _wheel_offset(cp, pt, i, k, p, n, cpsi, spsi):
+    """`wheel_at` of wheel k of car i: its static place (C_WX, C_WY) from the CG at lateral
+    offset n on piece p, turned into the track frame ((cpsi, spsi): cos, sin of yaw - track
+    heading)."""
+    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
+    return wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+
+
+@numba.njit(inline="always", **_JIT)
 def _road_z(pt, tsc, p, q, n):
     """Road height, m, at distance q along piece p (may run one piece over either end) and
     lateral offset n (track spec 5.4: linear right edge + banking, as `kernel.track_observed`)."""
@@ -263,8 +272,7 @@ def _relief_terms(pt, surf, tsc, p, q, n, main):
 def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
     """Road height under wheel k of car i (its static x, y from the CG (p, q, n: `_cg_on_piece`)
     in the track frame, located by `wheel_at`), without curbs or roughness."""
-    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-    da, dn = wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+    da, dn = _wheel_offset(cp, pt, i, k, p, n, cpsi, spsi)
     return _road_z(pt, tsc, p, q + da, n + dn)
 
 
@@ -272,8 +280,7 @@ def _wheel_road(cp, pt, tsc, i, k, p, q, n, cpsi, spsi):
 def _wheel_road_terms(cp, pt, surf, tsc, i, k, p, q, n, cpsi, spsi):
     """Under wheel k of car i (CG at p, q, n: `_cg_on_piece`; (cpsi, spsi): cos, sin of yaw -
     track heading): the smooth road's height (m) and the relief's `_relief_terms`."""
-    xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-    da, dn = wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+    da, dn = _wheel_offset(cp, pt, i, k, p, n, cpsi, spsi)
     pk, qk = on_piece(pt, p, q + da)
     nk = n + dn
     base, a, kt, kl, curb, d, bw = _relief_terms(pt, surf, tsc, pk, qk, nk, False)
@@ -400,8 +407,7 @@ def ground_contact(st, i, cp, pt, surf, tsc, mask, vxg, vyg, cpsi, spsi):
         if not mask & (1 << k):
             continue
         z += cp[i, C_PACK + k] - st[i, S_RIDE + k]
-        xk, yk = cp[i, C_WX + k], cp[i, C_WY + k]
-        da, dn = wheel_at(pt, p, n, xk * cpsi - yk * spsi, xk * spsi + yk * cpsi)
+        da, dn = _wheel_offset(cp, pt, i, k, p, n, cpsi, spsi)
         pk, qk = on_piece(pt, p, q + da)
         nk = n + dn
         # the road's normal: the piece's chord along the track at the wheel's offset (per metre
