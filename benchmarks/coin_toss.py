@@ -13,9 +13,13 @@ Replays one trace with `fidelity.py`'s controller, start and tick schedule, and
   difference at M leave the outcome as it was, madsim's parting is systematic (a difference of
   model, or of something before M); if nudges of the size of that difference flip it (e.g. the
   sign of `angle` near +-pi, where the reference controller's full lock changes side), it is a
-  coin toss that neither simulator decides by its physics.
+  coin toss that neither simulator decides by its physics;
+* `--nudge M --end`: the same nudges, each variant replayed to the end of the run, and prints
+  how each run ends: lap 2 (s, and its error against TORCS's), laps done or DNF, damage, and
+  how many variants end as TORCS's run does (issue 12, session 15).
 
 Run: python benchmarks/coin_toss.py wheel-2__car1-trb1__100 --events
+     python benchmarks/coin_toss.py g-track-2__car1-trb1__150 --nudge 2200 --end --sizes 0,1e-4,-1e-4
      python benchmarks/coin_toss.py dirt-2__car1-trb1__100 --nudge 1100 --to 1500 \
          --probe 1180,1300,1499 --sizes 0,1e-3,-1e-3,1e-2,-1e-2
 Messages count from the first racing message (0), as the trace's rows after the countdown.
@@ -141,12 +145,42 @@ def nudges(path: Path, at: int, to: int, probes: list[int], sizes: list[float], 
     return 0
 
 
+def outcome(torcs_lap2: float, madsim_lap2: float, end: str, damage: float) -> tuple[float, float, str, float]:
+    """(madsim's lap 2 s, its error against TORCS's in %, how it ends, damage): nan where a lap 2
+    is missing on either side."""
+    both = math.isfinite(torcs_lap2) and math.isfinite(madsim_lap2)
+    err = 100.0 * (madsim_lap2 - torcs_lap2) / torcs_lap2 if both else float("nan")
+    return float(madsim_lap2), err, end, float(damage)
+
+
+def nudges_to_end(path: Path, at: int, sizes: list[float], what: str) -> int:
+    """Each nudged variant replayed to the end of the run: its lap 2, end and damage."""
+    same = 0
+    t_end = None
+    print(f"nudge {what} at message {at}, each variant to the end of the run")
+    for size in sizes:
+        def watch(msg, world, f, size=size):
+            if msg == at and size != 0.0:
+                nudge_state(world, what, size)
+
+        run = fidelity.replay(path, watch=watch)
+        t_end = run.torcs_end
+        lap2, err, end, dmg = outcome(run.torcs_lap2, run.madsim_lap2, run.madsim_end, run.madsim["damage"][-1])
+        same += end == run.torcs_end
+        print(f"{size:+9.1e}  lap 2 {lap2:8.3f} s  {err:+6.2f} %  {end:8s}  damage {dmg:5.0f}")
+        sys.stdout.flush()
+    print(f"TORCS: {t_end}; {same} of {len(sizes)} variants end as TORCS's run does")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("trace", help="trace name, e.g. wheel-2__car1-trb1__100")
     ap.add_argument("--events", action="store_true", help="damage events and the first parting")
     ap.add_argument("--nudge", type=int, default=None, help="message at which madsim's car is nudged")
     ap.add_argument("--to", type=int, default=None, help="last message of the nudged replays")
+    ap.add_argument("--end", action="store_true", help="with --nudge: each variant to the end of the run "
+                    "(lap 2, end, damage) instead of --to and --probe")
     ap.add_argument("--probe", default="", help="messages to print, comma-separated (default: --to)")
     ap.add_argument("--sizes", default="0,1e-4,-1e-4,1e-3,-1e-3,1e-2,-1e-2", help="nudge sizes, comma-separated")
     ap.add_argument("--what", default="yaw", choices=("yaw", "lateral", "speed"), help="what to nudge")
@@ -158,11 +192,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if a.events:
         return events(path)
+    sizes = [float(x) for x in a.sizes.split(",")]
+    if a.nudge is not None and a.end:
+        return nudges_to_end(path, a.nudge, sizes, a.what)
     if a.nudge is None or a.to is None or a.to < a.nudge:
-        print("give --events, or --nudge M --to N (N >= M)", file=sys.stderr)
+        print("give --events, --nudge M --end, or --nudge M --to N (N >= M)", file=sys.stderr)
         return 2
     probes = [int(x) for x in a.probe.split(",") if x]
-    return nudges(path, a.nudge, a.to, probes, [float(x) for x in a.sizes.split(",")], a.what)
+    return nudges(path, a.nudge, a.to, probes, sizes, a.what)
 
 
 if __name__ == "__main__":

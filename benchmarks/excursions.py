@@ -28,6 +28,9 @@ Run: python benchmarks/excursions.py [--runs wheel-2,street-1] [--leads 3,6,10,1
      python benchmarks/excursions.py --table g-track-2__car1-trb1__150:2246:3:50
      (one replay message by message: both runs' heading, speeds, trackPos, z, wheel spins and
      the materials under TORCS's wheels, to see at which message and on what they part)
+     python benchmarks/excursions.py --sweep forza__car1-stock2__100:20415:20454,20474,20499 --leads 1-10,15,20,40
+     (one replay per lead, madsim minus TORCS at the probe messages: whether TORCS's run lies
+     inside madsim's spread over the placements or to one side of all of them; session 15)
 Prints (with --windows) one line per window, then per material class, per class and car and per
 class by the share of wheel-messages off: the means of TORCS's and madsim's heading and speed
 changes, the slope of madsim's heading change on TORCS's (least squares through 0), their
@@ -285,6 +288,61 @@ def message_table(path: Path, start: int, lead: int, horizon: int,
     return rows
 
 
+def parse_leads(text: str) -> list[int]:
+    """'1-4,10,20' -> [1, 2, 3, 4, 10, 20]."""
+    out: list[int] = []
+    for part in filter(None, text.split(",")):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    return out
+
+
+def lead_sweep(path: Path, start: int, leads: list[int], probes: list[int],
+               scale: list[tuple[str, str, float]]) -> list[dict]:
+    """One open-loop replay per lead (`message_table`), and at each probe message madsim minus
+    TORCS: the heading (rad, both from the same placement), speedX and speedY (km/h), and
+    TORCS's heading change since the placement (rad, to tell the turn's direction)."""
+    out = []
+    for lead in leads:
+        rows = {r["msg"]: r for r in message_table(path, start, lead, max(probes) - start, scale)}
+        at = {}
+        for p in probes:
+            if p in rows:
+                t, m = rows[p]["torcs"], rows[p]["madsim"]
+                at[p] = {"dpsi": m["dpsi"] - t["dpsi"], "speedX": m["speedX"] - t["speedX"],
+                         "speedY": m["speedY"] - t["speedY"], "turn": t["dpsi"]}
+        out.append({"lead": lead, "at": at})
+    return out
+
+
+def sweep_summary(errs: np.ndarray, turns: np.ndarray) -> dict:
+    """Over the leads at one probe: the mean, min and max of madsim's heading error, and in how
+    many leads madsim turns more than TORCS (its error in the direction of TORCS's turn)."""
+    errs, turns = np.asarray(errs, float), np.asarray(turns, float)
+    return {"mean": float(errs.mean()), "min": float(errs.min()), "max": float(errs.max()),
+            "more": int(np.sum(errs * np.sign(turns) > 0.0)), "n": int(errs.size),
+            "inside": bool(errs.min() <= 0.0 <= errs.max())}
+
+
+def print_sweep(sweep: list[dict], probes: list[int]) -> None:
+    print("| lead | " + " | ".join(f"{p}: heading m-T rad, speedX m-T, speedY m-T km/h" for p in probes) + " |")
+    print("|---|" + "---|" * len(probes))
+    for r in sweep:
+        cells = [(f"{d['dpsi']:+.3f}, {d['speedX']:+.1f}, {d['speedY']:+.1f}" if (d := r["at"].get(p)) else "")
+                 for p in probes]
+        print(f"| {r['lead']} | " + " | ".join(cells) + " |")
+    cells = []
+    for p in probes:
+        got = [r["at"][p] for r in sweep if p in r["at"]]
+        if not got:
+            cells.append("")
+            continue
+        s = sweep_summary(np.array([d["dpsi"] for d in got]), np.array([d["turn"] for d in got]))
+        cells.append(f"mean {s['mean']:+.3f} ({s['min']:+.3f}..{s['max']:+.3f}), turns more in {s['more']} of "
+                     f"{s['n']}, TORCS {'inside' if s['inside'] else 'outside'}")
+    print("| all | " + " | ".join(cells) + " |")
+
+
 def print_table(rows: list[dict]) -> None:
     print("| msg | steer | dpsi T / m rad | speedX T / m km/h | speedY T / m | trackPos T / m | z T / m m | "
           "spins FR FL RR RL, T / m rad/s | under TORCS's wheels (FR, FL, RR, RL) |")
@@ -467,7 +525,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", default="", help="comma-separated parts of trace names (default: every lap run)")
     ap.add_argument("--leads", default="3,6,10,15", help="messages before an excursion's start to place the car "
-                    "(one replay each; madsim's figures are their mean)")
+                    "(one replay each; madsim's figures are their mean; ranges as 1-10)")
     ap.add_argument("--scale-surface", default="", help="experiment: 'name:column=factor,...' on the surf table "
                     "(columns: friction, rolling, roughness, wavenumber)")
     ap.add_argument("--windows", action="store_true", help="print every window, not only the summary")
@@ -475,6 +533,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--traces", default=str(fidelity.TRACES), help="folder of the real-TORCS traces")
     ap.add_argument("--table", default="", help="one replay message by message instead: 'TRACE:MSG[:LEAD[:HORIZON]]' "
                     "(TRACE a part of a trace's name; LEAD 3, HORIZON 50 unless given)")
+    ap.add_argument("--sweep", default="", help="one replay per lead of --leads: 'TRACE:MSG:PROBE,PROBE,...', "
+                    "madsim minus TORCS at each probe message")
     a = ap.parse_args(argv)
     paths = sorted(p for p in Path(a.traces).glob("*.csv.gz") if "__full" not in p.name)
     keys = [k for k in a.runs.split(",") if k]
@@ -488,6 +548,15 @@ def main(argv: list[str] | None = None) -> int:
         name, rest = part.split(":")
         col, factor = rest.split("=")
         scale.append((name.lower(), col, float(factor)))
+    if a.sweep:
+        parts = a.sweep.split(":")
+        found = [p for p in paths if parts[0] in p.name]
+        if len(parts) != 3 or len(found) != 1:
+            print(f"--sweep: TRACE:MSG:PROBE,... naming one trace ({len(found)} match {parts[0]!r})", file=sys.stderr)
+            return 2
+        probes = [int(x) for x in parts[2].split(",") if x]
+        print_sweep(lead_sweep(found[0], int(parts[1]), parse_leads(a.leads), probes, scale), probes)
+        return 0
     if a.table:
         key, *nums = a.table.split(":")
         found = [p for p in paths if key in p.name]
@@ -502,7 +571,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     windows: list[Window] = []
     for p in paths:
-        ws = trace_windows(p, tuple(int(x) for x in a.leads.split(",")), scale)
+        ws = trace_windows(p, tuple(parse_leads(a.leads)), scale)
         print(f"{p.name}: {sum(w.kind != 'control' for w in ws)} excursions, "
               f"{sum(w.kind == 'control' for w in ws)} control windows", file=sys.stderr)
         windows += ws

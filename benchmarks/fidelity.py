@@ -17,7 +17,8 @@ own (0.2-1.8 s, until TORCS's shutdown). It prints per run:
              over the RMS of TORCS's, by distance (the worse axle)
   dmg        final damage, TORCS / madsim
   off at     distance raced (m) where the car first leaves the road (|trackPos| > 1), TORCS / madsim
-  end        how each run ended: laps done, or DNF (TORCS's lap time limit: 84.5 s + length / 10 m/s)
+  end        how each run ended: laps done, or DNF (TORCS's lap time limit: 84.5 s + length / 10 m/s,
+             or damage above TORCS's 10000, `MAX_DAMAGE`)
 
 Straight-line runs also print 0-100 km/h and speedX at 10 s against TORCS's.
 
@@ -51,6 +52,10 @@ TRACE_GRID = {"rows": 1, "distance to start": 100.0}
 GEAR_UP = (5000, 6000, 6000, 6500, 7000)          # rpm x10 units, from gear 1..5
 GEAR_DOWN = (0, 2500, 3000, 3000, 3500, 3500)     # from gear 1..6
 STRAIGHT_STOP_S = 16.0
+MAX_DAMAGE = 10000.0
+"""TORCS removes a car whose damage exceeds the race's maximum (SimUpdate: `damage > _maxDammage`;
+the race manager's default, 10000, as the traces' README says): madsim's replay ends DNF
+there too (issue 12, session 15)."""
 COLUMNS = ("curLapTime", "lastLapTime", "damage", "distRaced", "distFromStart", "speedX", "trackPos", "z",
            "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3", "rpm", "gear", "speedZ")
 
@@ -183,7 +188,7 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None, wa
             if tail <= 0:
                 break
             tail -= 1
-        if cur_lap > limit_s:
+        if cur_lap > limit_s or (f.damage[0] > MAX_DAMAGE and not run.madsim_end):
             run.madsim_end = "DNF"
             break
         steer, accel, brake, gear = controls((f.angle[0], f.trackPos[0], f.speedX[0], f.rpm[0]), gear, mode,

@@ -67,3 +67,13 @@ def test_nudges_move_the_cars_state_as_named():
     assert set(changed) <= {L.S[c] for c in ("x", "y", "yaw", "vx_g", "vy_g", "vx", "vy")}
     with pytest.raises(ValueError):
         toss.nudge_state(w, "pitch", 0.1)
+
+
+def test_outcome_errs_against_torcs_only_where_both_have_a_lap_2(toss):
+    # g-track-2 at 150: TORCS 98.610 s; a variant with 91.370 s is 7.34 % faster
+    lap2, err, end, dmg = toss.outcome(98.610, 91.370, "2 laps", 156.0)
+    assert (lap2, end, dmg) == (91.370, "2 laps", 156.0)
+    assert err == pytest.approx(100.0 * (91.370 - 98.610) / 98.610, abs=1e-12)
+    assert err == pytest.approx(-7.342, abs=1e-3)
+    assert math.isnan(toss.outcome(98.610, float("nan"), "DNF", 95.0)[1])
+    assert math.isnan(toss.outcome(float("nan"), 217.790, "2 laps", 780.0)[1])

@@ -159,3 +159,23 @@ def test_message_table_starts_on_the_traces_state_and_follows_a_straight_run(exc
     last = rows[-1]["madsim"]
     assert abs(last["dpsi"]) < 1e-3 and abs(last["trackPos"]) < 1e-3
     assert last["speedX"] == pytest.approx(72.0, abs=2.0)
+
+
+def test_parse_leads_expands_ranges(exc):
+    assert exc.parse_leads("1-4,10,20") == [1, 2, 3, 4, 10, 20]
+    assert exc.parse_leads("3,6,10,15") == [3, 6, 10, 15]
+    assert exc.parse_leads("5-5,") == [5]
+
+
+def test_sweep_summary_counts_the_leads_that_turn_more_in_torcs_direction(exc):
+    # TORCS turns right (negative heading change) by 0.5 rad: errors -0.03 and -0.01 turn more,
+    # +0.02 and 0 do not; TORCS's figure (error 0) lies inside [-0.03, +0.02]
+    s = exc.sweep_summary(np.array([-0.03, 0.02, -0.01, 0.0]), np.full(4, -0.5))
+    assert s["more"] == 2 and s["n"] == 4 and s["inside"]
+    assert s["mean"] == pytest.approx(-0.005, abs=1e-12)
+    assert (s["min"], s["max"]) == (-0.03, 0.02)
+    # a left turn: the same errors now mean turning less where negative; all on one side: outside
+    s = exc.sweep_summary(np.array([0.01, 0.04, 0.02]), np.full(3, 0.3))
+    assert s["more"] == 3 and not s["inside"]
+    s = exc.sweep_summary(np.array([-0.01, -0.04]), np.array([0.3, 0.2]))
+    assert s["more"] == 0 and not s["inside"]

@@ -177,3 +177,22 @@ def test_dirt_2s_landings_take_torcs_bottoming_damage(fidelity):
         assert torcs > 0 and madsim == pytest.approx(torcs, rel=0.2), (lo, hi, torcs, madsim)
     assert run.madsim["damage"][-1] == run.madsim["damage"][960]
     assert run.torcs["damage"][-1] == run.torcs["damage"][960]
+
+
+def test_a_car_past_torcs_maximum_damage_is_out(fidelity):
+    # TORCS's SimUpdate removes a car whose damage exceeds the race's maximum (10000). aalborg's
+    # car nudged by 1e-3 rad of yaw at message 7500 drives free of the barrier where the
+    # unnudged one rests, and scrapes on past 10000 points (11005 at its finish without the
+    # rule, session 15): the replay must end DNF there, as TORCS would.
+    from madsim.physics import layout as L
+
+    def watch(msg, world, f):
+        if msg == 7500:                                  # coin_toss.py's yaw nudge
+            world.state[0, L.S["yaw"]] += 1e-3
+
+    run = fidelity.replay(TRACES / "aalborg__car1-trb1__100.csv.gz", watch=watch)
+    assert fidelity.MAX_DAMAGE == 10000.0
+    assert run.madsim_end == "DNF"
+    assert run.madsim["damage"][-1] > fidelity.MAX_DAMAGE
+    assert run.madsim["damage"][-2] <= fidelity.MAX_DAMAGE      # it ends at the first message past it
+    assert run.madsim["curLapTime"][-1] < 84.5 + 2587.5 / 10.0   # not the lap-time limit (aalborg 2587.5 m)
