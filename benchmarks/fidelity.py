@@ -18,7 +18,7 @@ own (0.2-1.8 s, until TORCS's shutdown). It prints per run:
   dmg        final damage, TORCS / madsim
   off at     distance raced (m) where the car first leaves the road (|trackPos| > 1), TORCS / madsim
   end        how each run ended: laps done, or DNF (TORCS's lap time limit: 84.5 s + length / 10 m/s,
-             or damage above TORCS's 10000, `MAX_DAMAGE`)
+             or damage above TORCS's 10000, `madsim.net.server.MAX_DAMAGE`)
 
 Straight-line runs also print 0-100 km/h and speedX at 10 s against TORCS's.
 
@@ -52,10 +52,6 @@ TRACE_GRID = {"rows": 1, "distance to start": 100.0}
 GEAR_UP = (5000, 6000, 6000, 6500, 7000)          # rpm x10 units, from gear 1..5
 GEAR_DOWN = (0, 2500, 3000, 3000, 3500, 3500)     # from gear 1..6
 STRAIGHT_STOP_S = 16.0
-MAX_DAMAGE = 10000.0
-"""TORCS removes a car whose damage exceeds the race's maximum (SimUpdate: `damage > _maxDammage`;
-the race manager's default, 10000, as the traces' README says): madsim's replay ends DNF
-there too (issue 12, session 15)."""
 COLUMNS = ("curLapTime", "lastLapTime", "damage", "distRaced", "distFromStart", "speedX", "trackPos", "z",
            "wheelSpinVel_0", "wheelSpinVel_1", "wheelSpinVel_2", "wheelSpinVel_3", "rpm", "gear", "speedZ")
 
@@ -119,6 +115,7 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None, wa
     world, frame)`, if given, is called at each racing message (0 = the first) before the
     car acts on it (benchmarks/slide_window.py reads madsim's state there)."""
     from madsim.cars import load_car
+    from madsim.net.server import MAX_DAMAGE, lap_time_limit_s
     from madsim.physics.schedule import FIRST_MESSAGE_TIME, make_clock
     from madsim.physics.sensors import SensorSuite
     from madsim.physics.world import World
@@ -137,7 +134,7 @@ def replay(path: Path, schedule: str = "torcs", until_s: float | None = None, wa
     tail = lt.shape[0] - 1 - int(changes[1]) if laps_done >= 2 and changes.size >= 2 else 0
     track = load_track(track_name)
     car = load_car(car_name)
-    limit_s = 84.5 + track.length / 10.0
+    limit_s = lap_time_limit_s(track.length)
     run.torcs_end = "16 s" if mode == "full" else ("2 laps" if laps_done >= 2 else "DNF")
     world = World(track, [car], np.random.default_rng(0), fuel=True, damage=True,
                   race_laps=None if mode == "full" else 2)

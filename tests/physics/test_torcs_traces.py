@@ -184,6 +184,7 @@ def test_a_car_past_torcs_maximum_damage_is_out(fidelity):
     # car nudged by 1e-3 rad of yaw at message 7500 drives free of the barrier where the
     # unnudged one rests, and scrapes on past 10000 points (11005 at its finish without the
     # rule, session 15): the replay must end DNF there, as TORCS would.
+    from madsim.net.server import MAX_DAMAGE
     from madsim.physics import layout as L
 
     def watch(msg, world, f):
@@ -191,8 +192,8 @@ def test_a_car_past_torcs_maximum_damage_is_out(fidelity):
             world.state[0, L.S["yaw"]] += 1e-3
 
     run = fidelity.replay(TRACES / "aalborg__car1-trb1__100.csv.gz", watch=watch)
-    assert fidelity.MAX_DAMAGE == 10000.0
+    assert MAX_DAMAGE == 10000.0
     assert run.madsim_end == "DNF"
-    assert run.madsim["damage"][-1] > fidelity.MAX_DAMAGE
-    assert run.madsim["damage"][-2] <= fidelity.MAX_DAMAGE      # it ends at the first message past it
+    assert run.madsim["damage"][-1] > MAX_DAMAGE
+    assert run.madsim["damage"][-2] <= MAX_DAMAGE      # it ends at the first message past it
     assert run.madsim["curLapTime"][-1] < 84.5 + 2587.5 / 10.0   # not the lap-time limit (aalborg 2587.5 m)
