@@ -6,12 +6,12 @@ from typing import Any, ClassVar
 
 import gymnasium
 
-from madsim.envs.core import CurriculumProgress, MadrasCore
+from madsim.envs.front import EnvFront
 
 __all__ = ["MadrasEnv"]
 
 
-class MadrasEnv(CurriculumProgress, gymnasium.Env):
+class MadrasEnv(EnvFront, gymnasium.Env):
     """
     ## Description
     One learning car drives a TORCS-like race, possibly among programmed traffic cars, as in
@@ -80,43 +80,24 @@ class MadrasEnv(CurriculumProgress, gymnasium.Env):
 
     def __init__(self, config=None, *, backend=None, traffic_factory=None,
                  render_mode: str | None = None, render_options: dict | None = None):
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None, 'human' or 'rgb_array', got {render_mode!r}")
-        self.core = MadrasCore(config, backend=backend, traffic_factory=traffic_factory)
+        self._open(config, backend, traffic_factory, render_mode, render_options)
+        self.agent = self.core.names[0]
+        self.action_space = self.core.action_spaces[self.agent]
+        self.observation_space = self.core.observation_spaces[self.agent]
+
+    def _check_core(self) -> None:
         if len(self.core.names) != 1:
             raise ValueError(f"MadrasEnv drives one learning car, the config has "
                              f"{len(self.core.names)} ({', '.join(self.core.names)}); "
                              "use MadrasParallelEnv")
-        self.agent = self.core.names[0]
-        self.config = self.core.config
-        self.action_space = self.core.action_spaces[self.agent]
-        self.observation_space = self.core.observation_spaces[self.agent]
-        self.render_mode = render_mode
-        self._view = None
-        if render_mode is not None:
-            from madsim.render.envview import EnvView
-
-            self._view = EnvView(render_mode, **(render_options or {}))
-            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core.ticks_per_step)}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         obs, infos = self.core.new_episode(seed, options, self.np_random)
-        if self.render_mode == "human":
-            self._view.render(self.core.view_state())
+        self._shown()
         return obs[self.agent], infos[self.agent]
 
     def step(self, action):
         out = self.core.step_one(self.agent, action)
-        if self.render_mode == "human":
-            self._view.render(self.core.view_state())
+        self._shown()
         return out
-
-    def render(self):
-        """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""
-        return None if self._view is None else self._view.render(self.core.view_state())
-
-    def close(self) -> None:
-        if self._view is not None:
-            self._view.close()
-        self.core.close()

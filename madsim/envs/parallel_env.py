@@ -7,12 +7,12 @@ from typing import Any, ClassVar
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from madsim.envs.core import CurriculumProgress, MadrasCore
+from madsim.envs.front import EnvFront
 
 __all__ = ["MadrasParallelEnv"]
 
 
-class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
+class MadrasParallelEnv(EnvFront, ParallelEnv):
     """
     ## Description
     Several learning cars race together, possibly among programmed traffic cars, as in
@@ -60,21 +60,11 @@ class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
 
     def __init__(self, config=None, *, backend=None, traffic_factory=None,
                  render_mode: str | None = None, render_options: dict | None = None):
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None, 'human' or 'rgb_array', got {render_mode!r}")
-        self.core = MadrasCore(config, backend=backend, traffic_factory=traffic_factory)
-        self.config = self.core.config
+        self._open(config, backend, traffic_factory, render_mode, render_options)
         self.possible_agents = list(self.core.names)
         self.agents: list[str] = []
         self.observation_spaces = dict(self.core.observation_spaces)
         self.action_spaces = dict(self.core.action_spaces)
-        self.render_mode = render_mode
-        self._view = None
-        if render_mode is not None:
-            from madsim.render.envview import EnvView
-
-            self._view = EnvView(render_mode, **(render_options or {}))
-            self.metadata = {**self.metadata, "render_fps": EnvView.fps(self.core.ticks_per_step)}
         self._np_random = None
 
     def observation_space(self, agent: str):
@@ -88,8 +78,7 @@ class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
             self._np_random, _ = seeding.np_random(seed)
         obs, infos = self.core.new_episode(seed, options, self._np_random)
         self.agents = list(self.core.live)
-        if self.render_mode == "human":
-            self._view.render(self.core.view_state())
+        self._shown()
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
@@ -97,15 +86,5 @@ class MadrasParallelEnv(CurriculumProgress, ParallelEnv):
                    if name in self.core.live or name not in self.possible_agents}
         result = self.core.step(actions)
         self.agents = list(self.core.live)
-        if self.render_mode == "human":
-            self._view.render(self.core.view_state())
+        self._shown()
         return result
-
-    def render(self):
-        """'rgb_array': the current frame, (H, W, 3) uint8; 'human': draws the window, None."""
-        return None if self._view is None else self._view.render(self.core.view_state())
-
-    def close(self) -> None:
-        if self._view is not None:
-            self._view.close()
-        self.core.close()
