@@ -492,9 +492,9 @@ class MadrasCore:
 
     def _complete_rays(self) -> None:
         """Every ray of the latest frame cast (the rays `_cast_read_rays` left out)."""
-        suite = getattr(self.backend, "suite", None)
-        if suite is not None and self.frame is not None:
-            suite.complete(self.frame.flat, self.frame.cars)
+        suite, frame = getattr(self.backend, "suite", None), getattr(self, "frame", None)
+        if suite is not None and frame is not None:
+            suite.complete(frame.flat, frame.cars)
 
     def _init_wait(self, ticks: int) -> None:
         """MADRaS devel's init_wait: learners hold the stop action, traffic drives."""
