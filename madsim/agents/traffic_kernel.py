@@ -60,6 +60,13 @@ NP = P_PID + CTRL_PARAMS + 11
 MAX_LANES = 16
 RAND_BUF = 64
 
+RAYS_READ = np.array([0, 7, 8, 9, 10, 11, 18], dtype=np.int64)
+"""The rangefinder rays (indices into `track`) the built-in behaviours read (`_observe`: 0 and
+18; `_gaps_ahead`: 9; `_drive`: 7-11): a door may cast only these for its compiled traffic cars
+(`SensorSuite.cast_only`, `WorldBatch.cast_only`)."""
+COMPILED_KINDS = (K_CONST_VEL, K_SINUSOIDAL, K_LANE_SWITCH, K_STOPPING, K_PARK, K_PARKED)
+"""The kinds driven by compiled code alone (K_USER's target and K_FOREIGN read every ray)."""
+
 KMH = 3.6
 NO_CAR_M = 200.0
 FRONT_SIDE_SECTORS = 9       # FRONT_CONE_DEG = 90: sectors 9..26

@@ -56,6 +56,7 @@ from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController, speed_gear
 from madsim.agents.sensor_row import SensorRow
 from madsim.agents.rewards import TICK_S, RewardSet
+from madsim.agents import traffic_kernel as tk
 from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import RANGEFINDER_ANGLES_DEG, LocalBackend
 from madsim.envs.config import (
@@ -407,6 +408,7 @@ class MadrasCore:
                 "placement": (float(where[j, 0]), float(where[j, 1]))})
             self.fleet.put(j, b)
         self._traffic_rows = np.arange(plan.n_traffic)
+        self._cast_read_rays(plan.n_traffic)
         self.live = list(plan.agents)
         self._end_together = cfg.server.episode_end == "any"
         self.tick = 0
@@ -459,6 +461,7 @@ class MadrasCore:
 
         live = [plan.row(n) for n in self.live] or [plan.row(n) for n in plan.agents]
         k = live[0]
+        self._complete_rays()
         world = getattr(self.backend, "world", None)
         suite = getattr(self.backend, "suite", None)
         cars = [self.assets.car(name) for name in plan.cars]
@@ -472,7 +475,26 @@ class MadrasCore:
     @property
     def rows(self) -> list[SensorRow]:
         """The latest sensors of every car, as SensorRows (by car row)."""
+        self._complete_rays()
         return [SensorRow(v) for v in self.frame.flat.tolist()]
+
+    def _cast_read_rays(self, n_traffic: int) -> None:
+        """Compiled traffic cars get only the rays their behaviours read cast each tick
+        (`traffic_kernel.RAYS_READ`; not with sensor noise); `_complete_rays` casts the rest
+        for a public read."""
+        suite = getattr(self.backend, "suite", None)
+        if suite is None:
+            return
+        suite.cast_all()
+        compiled = np.flatnonzero(np.isin(self.fleet.kind[:n_traffic], tk.COMPILED_KINDS))
+        if compiled.size and not suite.noisy:
+            suite.cast_only(compiled, tk.RAYS_READ)
+
+    def _complete_rays(self) -> None:
+        """Every ray of the latest frame cast (the rays `_cast_read_rays` left out)."""
+        suite, frame = getattr(self.backend, "suite", None), getattr(self, "frame", None)
+        if suite is not None and frame is not None:
+            suite.complete(frame.flat, frame.cars)
 
     def _init_wait(self, ticks: int) -> None:
         """MADRaS devel's init_wait: learners hold the stop action, traffic drives."""

@@ -41,6 +41,7 @@ from madsim.agents.curriculum import apply_stage, stage_index
 from madsim.agents.learner_kernel import LearnerScratch, tally, tick_controls, tick_outcome
 from madsim.agents.observations import ObservationBuilder
 from madsim.agents.pid import PIDController
+from madsim.agents import traffic_kernel as tk
 from madsim.agents.traffic_fleet import TrafficFleet
 from madsim.envs.backends import RANGEFINDER_ANGLES_DEG
 from madsim.envs.config import ConfigError, ScenarioConfig, action_space, load_config
@@ -338,6 +339,9 @@ class MadrasVectorEnv(VectorEnv):
                 "row": j, "car": plan.traffic_cars[j], "tick_s": TICK_S,
                 "placement": (float(where[j, 0]), float(where[j, 1]))})
             self.fleet.put(a + j, b)
+        compiled = a + np.flatnonzero(np.isin(self.fleet.kind[a:a + plan.n_traffic], tk.COMPILED_KINDS))
+        if compiled.size and not cfg.server.observation_noise:   # only the rays they read
+            self.batch.cast_only(compiled, tk.RAYS_READ)
         self._n_traffic[e] = plan.n_traffic
         return {"seed": plan.seed, "episode": plan.episode, "stage": stage_i,
                 "track": plan.track, "track_length": float(track.length), "cars": plan.cars,

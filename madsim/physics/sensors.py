@@ -111,12 +111,46 @@ def _opponent_sectors(st, i, active, max_range, row):
             row[O_OPP + sector] = d
 
 
+RAY_UNCAST = math.nan
+"""The `track` value of a ray left out (its angle NaN in the angles `sensor_kernel` is given: see
+`uncast_angles`); `fill_rays` casts it later from the same state, bit for bit as if cast."""
+
+
+def uncast_angles(angles_deg: np.ndarray, read: np.ndarray) -> np.ndarray:
+    """A copy of one car's 19 rangefinder angles (deg) with NaN (not cast) at every ray index
+    not in `read`."""
+    out = np.full(19, np.nan)
+    idx = np.asarray(read, dtype=np.int64)
+    out[idx] = np.asarray(angles_deg, dtype=np.float64)[idx]
+    return out
+
+
+@numba.njit(cache=True, **NO_REFCOUNT)
+def fill_rays(cars, st, runs, piece_run, half_width, angles_deg, max_range, flat):
+    """Cast the rays `sensor_kernel` left out (RAY_UNCAST) in flat[k] of car cars[k], from the
+    World state `st` it was sensed from and the car's full angles: the same operations as
+    `sensor_kernel`'s, so the rows equal a full cast bit for bit. Returns the rays cast."""
+    count = 0
+    for k in range(cars.shape[0]):
+        i = cars[k]
+        row = flat[k]
+        for j in range(19):
+            if row[O_TRACK + j] == row[O_TRACK + j]:
+                continue
+            run = piece_run[int(st[i, L.S_PIECE])]
+            h = st[i, L.S_YAW] - math.radians(angles_deg[i, j])
+            row[O_TRACK + j] = cast_ray(runs, half_width, run, st[i, L.S_X], st[i, L.S_Y],
+                                        math.cos(h), math.sin(h), max_range)
+            count += 1
+    return count
+
+
 @numba.njit(cache=True, **NO_REFCOUNT)
 def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_pos, dist_origin,
                   active, max_range, out):
     """out[k] = the 79 wire-order SCR values of car cars[k] (focus left at -1, no noise) from the
     World state `st` (layout.STATE_COLUMNS): units converted, rangefinders cast exactly (-1 off
-    the road), opponents by sector. One pass; it allocates nothing, so it runs without numba's
+    the road; RAY_UNCAST where the car's angle is NaN, `uncast_angles`), opponents by sector. One pass; it allocates nothing, so it runs without numba's
     reference counting (`kernel.NO_REFCOUNT`). `geo` (the track's piece table) is not read."""
     for k in range(cars.shape[0]):
         i = cars[k]
@@ -145,7 +179,11 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
             run = piece_run[int(st[i, L.S_PIECE])]
             x, y, yaw = st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW]
             for j in range(19):
-                h = yaw - math.radians(angles_deg[i, j])
+                angle = angles_deg[i, j]
+                if angle != angle:      # NaN: a ray no reader of this car needs (RAY_UNCAST)
+                    row[O_TRACK + j] = RAY_UNCAST
+                    continue
+                h = yaw - math.radians(angle)
                 row[O_TRACK + j] = cast_ray(runs, half_width, run, x, y, math.cos(h), math.sin(h), max_range)
         else:
             for j in range(19):
@@ -272,6 +310,8 @@ class SensorSuite:
         self.rng = rng if rng is not None else world.rng
         n = world.n_cars
         self.angles_deg = np.tile(np.asarray(SCR_DEFAULT_ANGLES_DEG), (n, 1))
+        self.cast_angles = self.angles_deg.copy()   # the kernels' angles: NaN = not cast
+        self._partial = np.zeros(n, dtype=np.bool_)  # cars of which only some rays are cast
         self.focus = FocusState(n)
         self.dist_origin = np.zeros(n)
         self._all = np.arange(n, dtype=np.int64)
@@ -292,6 +332,32 @@ class SensorSuite:
         if a.shape != (19,):
             raise ValueError(f"rangefinder angles must be 19 values, got shape {a.shape}")
         self.angles_deg[car] = a
+        self.cast_angles[car] = a
+        self._partial[car] = False
+
+    def cast_only(self, cars, read) -> None:
+        """Cast only the rays `read` (indices 0..18) of `cars` from now on (a compiled traffic
+        behaviour's, `traffic_kernel.RAYS_READ`); frames hold RAY_UNCAST in their other rays
+        until `complete`. Not for a noisy suite (noise would be drawn on the missing rays)."""
+        if self.noisy:
+            raise ValueError("a noisy suite casts every ray")
+        for car in np.atleast_1d(np.asarray(cars, dtype=np.int64)).tolist():
+            self.cast_angles[car] = uncast_angles(self.angles_deg[car], read)
+            self._partial[car] = True
+
+    def cast_all(self) -> None:
+        """Every car's 19 rays cast again (in place: compiled callers keep their arrays)."""
+        self.cast_angles[...] = self.angles_deg
+        self._partial[:] = False
+
+    def complete(self, flat: np.ndarray, cars: np.ndarray) -> int:
+        """Cast the rays left out of `flat` (rows of `cars`, sensed from the world's current
+        state): every row then equals a full cast's bit for bit. Returns the rays cast."""
+        if not self._partial.any():
+            return 0
+        runs, piece_run, half = self._track_args[1:]
+        return fill_rays(np.ascontiguousarray(cars, dtype=np.int64), self.world.state, runs,
+                         piece_run, half, self.angles_deg, SENSOR_RANGE_M, flat)
 
     def request_focus(self, cars, focus_deg) -> None:
         """Focus angles from this tick's control messages (used for the next frame)."""
@@ -303,7 +369,7 @@ class SensorSuite:
         cars = self._all if cars is None else np.atleast_1d(np.asarray(cars, dtype=np.int64))
         flat = np.empty((cars.shape[0], N_VALUES))
         geo, runs, piece_run, half = self._track_args
-        sensor_kernel(cars, w.state, geo, runs, piece_run, half, self.angles_deg, w.race_pos,
+        sensor_kernel(cars, w.state, geo, runs, piece_run, half, self.cast_angles, w.race_pos,
                       self.dist_origin, _active(w, self), SENSOR_RANGE_M, flat)
         st = w.state
         due = None
@@ -316,7 +382,7 @@ class SensorSuite:
         arrays (requested, next allowed, earliest): what a compiled caller such as the SCR
         server's tick passes."""
         w = self.world
-        return (*self._track_args, self.angles_deg, w.race_pos, self.dist_origin, _active(w, self),
+        return (*self._track_args, self.cast_angles, w.race_pos, self.dist_origin, _active(w, self),
                 SENSOR_RANGE_M, self.focus.requested_deg, self.focus.next_allowed_s, self.focus.earliest)
 
     def finish_frame(self, flat: np.ndarray, cars: np.ndarray, due) -> SensorFrame:

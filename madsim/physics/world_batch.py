@@ -41,7 +41,9 @@ from madsim.physics.sensors import (
     FocusState,
     SensorFrame,
     apply_noise,
+    fill_rays,
     focus_kernel,
+    uncast_angles,
 )
 from madsim.physics.tables import car_table, piece_table
 from madsim.physics.world import DAMAGE_SKILL, DT, SUBSTEPS, World, contact_available, finish_crossings
@@ -114,6 +116,7 @@ class WorldBatch:
         if angles.shape != (19,):
             raise ValueError(f"angles_deg must be 19 rangefinder angles, got shape {angles.shape}")
         self._angles = np.tile(angles, (c, 1))
+        self._cast = self._angles.copy()      # the kernels' angles: NaN = a ray not cast
         self._origin = np.zeros(c)
         self._active = np.ones(c, dtype=np.bool_)
         self._local = np.arange(self.capacity, dtype=np.int64)
@@ -190,6 +193,7 @@ class WorldBatch:
         self.controls[rows] = 0.0
         self.hits[rows] = False
         self._origin[rows] = self.state[rows, L.S_DIST]
+        self._cast[a:a + self.capacity] = self._angles[a:a + self.capacity]
         self._piece[rows] = self.state[rows, L.S_PIECE].astype(np.int64)
         self.contact_pairs[slot] = []
         if (self._noise_rng[slot] is not None) != bool(noisy):
@@ -367,12 +371,37 @@ class WorldBatch:
         tables = (self._geo_rows.all, self._geo_rows.off, self._runs.all, self._runs.off,
                   self._prun.all, self._prun.off)
         self._sense(self.state, mask, self.offsets, self.n_cars, self._track, tables,
-                    self._half, self._angles, self.race_pos, self._origin,
+                    self._half, self._cast, self.race_pos, self._origin,
                     self._active, SENSOR_RANGE_M, self._local, self.sensors)
         if self.focus or self._noisy_slots:
             for e in np.flatnonzero(mask).tolist():
                 if self.focus or self._noise_rng[e] is not None:
                     self._focus_and_noise(e)
+
+    def cast_only(self, rows, read) -> None:
+        """Cast only the rays `read` (indices 0..18) of batch rows `rows` (cars of compiled
+        traffic behaviours, `traffic_kernel.RAYS_READ`) until their slot's next `start`; their
+        other rays hold `sensors.RAY_UNCAST` until `complete`. Not for a noisy slot."""
+        for r in np.atleast_1d(np.asarray(rows, dtype=np.int64)).tolist():
+            if self._noise_rng[int(np.searchsorted(self.offsets, r, side="right")) - 1] is not None:
+                raise ValueError(f"row {r}: a noisy slot casts every ray")
+            self._cast[r] = uncast_angles(self._angles[r], read)
+
+    def complete(self, mask=None) -> int:
+        """Cast the rays `cast_only` left out of `sensors` for the slots in `mask` (default:
+        all), from the current state: their rows then equal a full cast's bit for bit.
+        Returns the rays cast."""
+        slots = range(self.n_slots) if mask is None else np.flatnonzero(mask).tolist()
+        count = 0
+        for e in slots:
+            rows = self.rows(e)
+            if self.n_cars[e] == 0 or not np.isnan(self._cast[rows]).any():
+                continue
+            track = self._slot_kind[e].world.track
+            count += fill_rays(self._local[:int(self.n_cars[e])], self.state[rows], track.runs,
+                               track.piece_run, track.width / 2, self._angles[rows],
+                               SENSOR_RANGE_M, self.sensors[rows])
+        return count
 
     def _focus_and_noise(self, slot: int) -> None:
         """The parts of SensorSuite.frame that stay in Python: focus readings, noise."""
