@@ -125,6 +125,14 @@ def uncast_angles(angles_deg: np.ndarray, read: np.ndarray) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=True, inline="always")
+def _ray(runs, half_width, run, x, y, yaw, angle_deg, max_range):
+    """The rangefinder ray at `angle_deg` (SCR's sign: positive to the right) of a car at (x, y,
+    yaw) on piece run `run`: its distance to the road's edge, capped at max_range."""
+    h = yaw - math.radians(angle_deg)
+    return cast_ray(runs, half_width, run, x, y, math.cos(h), math.sin(h), max_range)
+
+
 @numba.njit(cache=True, **NO_REFCOUNT)
 def fill_rays(cars, st, runs, piece_run, half_width, angles_deg, max_range, flat):
     """Cast the rays `sensor_kernel` left out (RAY_UNCAST) in flat[k] of car cars[k], from the
@@ -137,10 +145,8 @@ def fill_rays(cars, st, runs, piece_run, half_width, angles_deg, max_range, flat
         for j in range(19):
             if row[O_TRACK + j] == row[O_TRACK + j]:
                 continue
-            run = piece_run[int(st[i, L.S_PIECE])]
-            h = st[i, L.S_YAW] - math.radians(angles_deg[i, j])
-            row[O_TRACK + j] = cast_ray(runs, half_width, run, st[i, L.S_X], st[i, L.S_Y],
-                                        math.cos(h), math.sin(h), max_range)
+            row[O_TRACK + j] = _ray(runs, half_width, piece_run[int(st[i, L.S_PIECE])],
+                                    st[i, L.S_X], st[i, L.S_Y], st[i, L.S_YAW], angles_deg[i, j], max_range)
             count += 1
     return count
 
@@ -150,8 +156,9 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
                   active, max_range, out):
     """out[k] = the 79 wire-order SCR values of car cars[k] (focus left at -1, no noise) from the
     World state `st` (layout.STATE_COLUMNS): units converted, rangefinders cast exactly (-1 off
-    the road; RAY_UNCAST where the car's angle is NaN, `uncast_angles`), opponents by sector. One pass; it allocates nothing, so it runs without numba's
-    reference counting (`kernel.NO_REFCOUNT`). `geo` (the track's piece table) is not read."""
+    the road; RAY_UNCAST where the car's angle is NaN, `uncast_angles`), opponents by sector.
+    One pass; it allocates nothing, so it runs without numba's reference counting
+    (`kernel.NO_REFCOUNT`). `geo` (the track's piece table) is not read."""
     for k in range(cars.shape[0]):
         i = cars[k]
         row = out[k]
@@ -183,8 +190,7 @@ def sensor_kernel(cars, st, geo, runs, piece_run, half_width, angles_deg, race_p
                 if angle != angle:      # NaN: a ray no reader of this car needs (RAY_UNCAST)
                     row[O_TRACK + j] = RAY_UNCAST
                     continue
-                h = yaw - math.radians(angle)
-                row[O_TRACK + j] = cast_ray(runs, half_width, run, x, y, math.cos(h), math.sin(h), max_range)
+                row[O_TRACK + j] = _ray(runs, half_width, run, x, y, yaw, angle, max_range)
         else:
             for j in range(19):
                 row[O_TRACK + j] = -1.0
