@@ -93,6 +93,7 @@ import pymunk
 import pymunk.batch as pmb
 from pymunk._chipmunk_cffi import ffi as _ffi, lib as _lib
 
+from madsim.physics import pymunk_direct as _pd
 from madsim.physics.contact_kernels import (
     CAR_DAMAGE_PER_NS,
     CAR_YAW_MAX,
@@ -139,6 +140,12 @@ _ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2
 _SET_BODIES = _ffi.addressof(_lib, "pmSpaceBodySetIteratorFuncBatched")
 _GET_ARBITERS = _ffi.addressof(_lib, "pmSpaceArbiterIteratorFuncBatched")
 _F64, _I64 = np.dtype(np.float64), np.dtype(np.int64)
+_pd.check_layout(_ffi)
+_FN_ADDRESSES = {_pd.P_EACH_BODY: _pd.address(_ffi, _ffi.addressof(_lib, "cpSpaceEachBody")),
+                 _pd.P_STEP: _pd.address(_ffi, _ffi.addressof(_lib, "cpSpaceStep")),
+                 _pd.P_EACH_ARB: _pd.address(_ffi, _ffi.addressof(_lib, "cpSpaceEachCachedArbiter")),
+                 _pd.P_SET_FN: _pd.address(_ffi, _SET_BODIES),
+                 _pd.P_GET_FN: _pd.address(_ffi, _GET_ARBITERS)}
 
 JOIN_M = 0.01    # pit-wall quads whose edges meet this closely are one wall (float32 piece starts)
 
@@ -251,6 +258,14 @@ class ContactSolver:
         self._set_req = _batch_request(_BODY_FIELDS, self._set_buf)
         self._arb_req = _batch_request(_ARB_FIELDS, self._arb_buf)
         self._arb_views = _arbiter_views(self._arb_req)
+        self._ptrs = _pd.empty_ptrs()      # addresses for `pymunk_direct.narrow_direct`
+        for k, a in _FN_ADDRESSES.items():
+            self._ptrs[k] = a
+        self._ptrs[_pd.P_SET_REQ] = _pd.address(_ffi, self._set_req)
+        self._ptrs[_pd.P_ARB_REQ] = _pd.address(_ffi, self._arb_req)
+        self._ptrs[_pd.P_SET_FLOATS] = _pd.address(_ffi, self._set_req.floatArray)
+        self._ptrs[_pd.P_ARB_INTS] = _pd.address(_ffi, self._arb_req.intArray)
+        self._ptrs[_pd.P_ARB_FLOATS] = _pd.address(_ffi, self._arb_req.floatArray)
         self._cp_space = None              # the held space's chipmunk pointer
         self._space_touched = False        # bodies added / removed since its last step
         self._slots = np.zeros(0, dtype=np.int64)    # car index per dynamic body, in space order
@@ -396,6 +411,11 @@ class ContactSolver:
         self._counts["consults"] += 1
         if self._space is None:
             self._take_space()
+        elif not self._space_touched:  # the usual consultation: pymunk called from compiled code
+            if _pd.narrow_direct(self._ptrs, self._flags, self._member, self._idle, self._add,
+                                 self._drop, self._slots, x, y, yaw, self._poses, dt) >= 0:
+                self._counts["pymunk_steps"] += 1
+                return self._arbiters()
         n_add, n_drop = _membership_poses(self._flags, self._member, self._idle, self._add,
                                           self._drop, self._slots, x, y, yaw, self._poses)
         if n_add or n_drop:
@@ -411,9 +431,15 @@ class ContactSolver:
             _lib.cpSpaceStep(cp, dt)
         self._counts["pymunk_steps"] += 1
         req = self._arb_req
-        got_i, got_f = req.intArray, req.floatArray
-        got_i.num = got_f.num = 0
+        req.intArray.num = req.floatArray.num = 0
         _lib.cpSpaceEachCachedArbiter(cp, _GET_ARBITERS, req)
+        return self._arbiters()
+
+    def _arbiters(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arbiters pymunk.batch wrote into the get request's arrays (views of them), with
+        `_pair_out` grown to hold a response's pairs."""
+        req = self._arb_req
+        got_i, got_f = req.intArray, req.floatArray
         views = self._arb_views
         if got_i.max != views[0] or got_f.max != views[1]:        # pymunk grew its arrays
             views = self._arb_views = _arbiter_views(req)
@@ -429,6 +455,7 @@ class ContactSolver:
         """Hold a barrier space from the track's pool (built if none is free) until reset()."""
         self._space, self._mat_bodies = self._lease[0] = self._pool.take()
         self._cp_space = self._space._space
+        self._ptrs[_pd.P_SPACE] = _pd.address(_ffi, self._cp_space)
         self._space_touched = True
         n = self.n_cars
         keys = np.array([b.id for b in self._bodies] + [b.id for b in self._mat_bodies], dtype=np.int64)
