@@ -133,7 +133,7 @@ _ARB_FIELDS = (pmb.ArbiterFields.BODY_A_ID | pmb.ArbiterFields.BODY_B_ID | pmb.A
                | pmb.ArbiterFields.POINT_B_1 | pmb.ArbiterFields.DISTANCE_1
                | pmb.ArbiterFields.POINT_A_2 | pmb.ArbiterFields.POINT_B_2
                | pmb.ArbiterFields.DISTANCE_2)
-_ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2 x (pa, pb, dist))
+_ARB_INTS, _ARB_FLOATS = _pd.ARB_INTS, _pd.ARB_FLOATS   # per arbiter, see pymunk_direct
 # The narrow phase calls pymunk.batch's own C iterators with request structs made once per
 # solver (`_BatchIO`): what set_space_bodies / get_space_arbiters do, without a new struct, a
 # function look-up and two buffer objects per call.
@@ -248,6 +248,7 @@ class ContactSolver:
             self._shapes.append(shape)
         self._id_keys = self._id_codes = np.zeros(0, dtype=np.int64)
         self.arrays_version = 0            # bumped when an array of respond_arrays() is replaced
+        self.narrow_version = 0            # bumped when slots or poses (narrow_table_arrays) are
         self._code_of: dict = {}
         self._member = np.zeros(n, dtype=bool)
         self._idle = np.zeros(n, dtype=np.int64)
@@ -259,6 +260,7 @@ class ContactSolver:
         self._arb_req = _batch_request(_ARB_FIELDS, self._arb_buf)
         self._arb_views = _arbiter_views(self._arb_req)
         self._ptrs = _pd.empty_ptrs()      # addresses for `pymunk_direct.narrow_direct`
+        self.direct = np.zeros(3, dtype=np.int64)    # pymunk_direct.D_*
         for k, a in _FN_ADDRESSES.items():
             self._ptrs[k] = a
         self._ptrs[_pd.P_SET_REQ] = _pd.address(_ffi, self._set_req)
@@ -294,6 +296,7 @@ class ContactSolver:
             self._space, self._mat_bodies = None, []
         self._member[:] = False
         self._idle[:] = 0
+        self.direct[_pd.D_READY] = self.direct[_pd.D_NARROWED] = 0
         self._wall_cache[:, 3] = -1.0
         self._meta[:2] = 0
         self._slots = np.zeros(0, dtype=np.int64)
@@ -310,7 +313,9 @@ class ContactSolver:
     def stats(self) -> dict:
         """Counters since construction: resolve() calls, calls that consulted pymunk, pymunk
         steps, neighbour-list rebuilds."""
-        return dict(self._counts, list_rebuilds=int(self._meta[2]))
+        compiled = int(self.direct[_pd.D_CALLS])    # consultations from compiled code
+        return dict({k: v + compiled for k, v in self._counts.items()},
+                    list_rebuilds=int(self._meta[2]))
 
     @property
     def broad_phase_kernel(self):
@@ -400,6 +405,19 @@ class ContactSolver:
         self._counts["calls"] += 1
         return self._narrow(x, y, yaw, float(dt))
 
+    def narrow_table_arrays(self, contact_table: np.ndarray) -> tuple:
+        """The arrays of `pymunk_direct.NARROW_TABLE` after the caller's contact table (a
+        compiled tick's own consultations, `world_tick.contact_direct`). `slots` and `poses`
+        are replaced when a car enters or leaves the space: see `narrow_version`."""
+        return (contact_table, self._ptrs, self._member, self._idle, self._add, self._drop,
+                self._slots, self._poses, self.direct)
+
+    def arbiters_after_direct(self) -> tuple[np.ndarray, np.ndarray]:
+        """`narrow`'s answer for the consultation a compiled tick made and left to Python
+        (direct[D_NARROWED]; cleared here)."""
+        self.direct[_pd.D_NARROWED] = 0
+        return self._arbiters()
+
     def respond_arrays(self) -> tuple:
         """The solver's arrays `_respond_settle` reads and writes besides the poses and the
         broad phase's (id keys, id codes, material table, blocked, moved, travel, pair out);
@@ -429,6 +447,7 @@ class ContactSolver:
             self._space_touched = False
         else:
             _lib.cpSpaceStep(cp, dt)
+        self.direct[_pd.D_READY] = 1   # the body set stands until a car enters or leaves
         self._counts["pymunk_steps"] += 1
         req = self._arb_req
         req.intArray.num = req.floatArray.num = 0
@@ -457,6 +476,7 @@ class ContactSolver:
         self._cp_space = self._space._space
         self._ptrs[_pd.P_SPACE] = _pd.address(_ffi, self._cp_space)
         self._space_touched = True
+        self.direct[_pd.D_READY] = 0
         n = self.n_cars
         keys = np.array([b.id for b in self._bodies] + [b.id for b in self._mat_bodies], dtype=np.int64)
         codes = np.concatenate([np.arange(n), -1 - np.arange(len(self._mat_bodies))]).astype(np.int64)
@@ -474,6 +494,7 @@ class ContactSolver:
         for i in self._drop[:n_drop]:
             self._space.remove(self._bodies[i], self._shapes[i])
         self._space_touched = True
+        self.direct[_pd.D_READY] = 0
         self._refresh_slots()
 
     def _refresh_slots(self) -> None:
@@ -484,6 +505,7 @@ class ContactSolver:
         self._slots = np.array([self._code_of[int(i)] for i in ids], dtype=np.int64)
         self._poses = np.zeros(3 * max(1, ids.size))   # static bodies keep pose (0, 0, 0)
         self._set_buf.set_float_buf(self._poses)
+        self.narrow_version += 1
 
 
 # --- set-up helpers (plain Python) ---------------------------------------------------------------

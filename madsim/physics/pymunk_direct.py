@@ -24,11 +24,14 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from madsim.array_table import f8_ptr, i8_ptr
 from madsim.physics.contact_kernels import IDLE_CALLS, _membership_poses
 
 (P_SPACE, P_EACH_BODY, P_STEP, P_EACH_ARB, P_SET_FN, P_GET_FN, P_SET_REQ, P_ARB_REQ,
  P_SET_FLOATS, P_ARB_INTS, P_ARB_FLOATS) = range(11)
 NP_LEN = 11
+ARB_INTS, ARB_FLOATS = 3, 12
+"""Per arbiter in the get buffers: (a id, b id, count), (normal, 2 x (pa, pb, dist))."""
 """Rows of the address table `ptrs`."""
 
 ARRAY_NUM, ARRAY_MAX, ARRAY_DATA = 0, 4, 8
@@ -98,6 +101,29 @@ def _poke_i32(typingctx, addr, value):
     return sig, codegen
 
 
+@intrinsic
+def _peek_i64(typingctx, addr):
+    """The 8-byte integer (a pointer) at address addr."""
+    sig = types.int64(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.load(builder.inttoptr(args[0], ir.IntType(64).as_pointer()))
+    return sig, codegen
+
+
+@numba.njit(cache=True, inline="always")
+def arbiter_ints(ptrs, n):
+    """The first n ints of the get request's int array (a view of pymunk's memory)."""
+    return numba.carray(i8_ptr(_peek_i64(ptrs[P_ARB_INTS] + ARRAY_DATA)), n)
+
+
+@numba.njit(cache=True, inline="always")
+def arbiter_floats(ptrs):
+    """The floats written into the get request's float array (a view of pymunk's memory)."""
+    n = _peek_i32(ptrs[P_ARB_FLOATS] + ARRAY_NUM)
+    return numba.carray(f8_ptr(_peek_i64(ptrs[P_ARB_FLOATS] + ARRAY_DATA)), n)
+
+
 @numba.njit(cache=True, inline="always")
 def _membership_stable(flags, member, idle):
     """True if `_membership` on these arrays would put no car in the space and take none out."""
@@ -127,6 +153,23 @@ def narrow_direct(ptrs, flags, member, idle, add, drop, slots, x, y, yaw, poses,
     _poke_i32(ptrs[P_ARB_FLOATS] + ARRAY_NUM, 0)
     _call_ppp(ptrs[P_EACH_ARB], space, ptrs[P_GET_FN], ptrs[P_ARB_REQ])
     return _peek_i32(ptrs[P_ARB_INTS] + ARRAY_NUM)
+
+
+NARROW_TABLE = (
+    ("contact_table", "i8", 2, "C"), ("ptrs", "i8", 1, "C"), ("member", "b1", 1, "C"),
+    ("idle", "i8", 1, "C"), ("add", "i8", 1, "C"), ("drop", "i8", 1, "C"), ("slots", "i8", 1, "C"),
+    ("poses", "f8", 1, "C"), ("direct", "i8", 1, "C"),
+)
+"""The rows of the address table a compiled tick reads to consult pymunk itself
+(`world_tick.contact_direct`): the World's `CONTACT_TABLE` table, then the solver's `ptrs`,
+membership arrays, pose buffer and `direct` (D_*)."""
+(N_CTABLE, N_PTRS, N_MEMBER, N_IDLE, N_ADD, N_DROP, N_SLOTS, N_POSES, N_DIRECT) = (
+    np.int64(k) for k in range(len(NARROW_TABLE)))
+D_READY, D_NARROWED, D_CALLS = range(3)
+"""`direct` (3,) int64: the solver holds a space whose body set is unchanged since its last
+step (1: a compiled consultation may run), the arbiters of the last consultation are in the get
+buffers and not yet responded to (set by the compiled tick when it hands the rest of a tick to
+Python), the consultations made from compiled code (counted into `ContactSolver.stats`)."""
 
 
 def address(ffi, cdata) -> int:
