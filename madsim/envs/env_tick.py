@@ -10,8 +10,11 @@ order `MadrasCore.step` calls them
 one by one, so a step gives the same bits either way (tests/envs/test_env_tick.py). Whatever a
 stage cannot finish compiled stops the call at that stage and is done by `MadrasCore`'s Python
 path of the same stage, which then goes on: the messages of communication (`CommHub.send`),
-the traffic cars' controls (`TrafficFleet.act`), something near a car (the pymunk narrow phase,
-`World.finish_tick`), sensor noise, a reward or done written in Python. Action noise (drawn
+the traffic cars' controls (`TrafficFleet.act`), sensor noise, a reward or done written in
+Python, and the rare contact consultation that needs Python (`World.finish_tick`: a car entering
+or leaving the pymunk space, a buffer to grow); the usual one is compiled too
+(`world_tick.contact_direct`: pymunk's C functions called by address, `physics.pymunk_direct`;
+World.contact_pairs is then not refreshed, as after a tick without contact). Action noise (drawn
 from a numpy Generator) is added in Python, and that step's call starts at CONTROLS. (The SCR
 server's tick is built the same way: `madsim.net.server_tick`.)
 

@@ -5,7 +5,10 @@ velocities, which it changes in place (positions separated, velocities changed b
 and returns a `ContactReport` (per car: wall contact, car contact, damage added; car pairs).
 The World's tick takes the same steps without the report: its compiled stepper runs the broad
 phase, `ContactSolver.narrow` the pymunk step, and `world_tick.finish_contact` the response
-and the tick's bookkeeping (one Python call per sub-step where something is near).
+and the tick's bookkeeping (one Python call per sub-step where something is near). A
+consultation where no car enters or leaves the space calls chipmunk from compiled code
+(`pymunk_direct.narrow_direct`), and MadrasEnv's compiled step makes it without returning to
+Python at all (`world_tick.contact_direct`).
 
 1. Broad phase (compiled, no pymunk). Walls: per car a conservative clearance to the barrier
    lines and the pit walls (lateral extent of the box at the car's track position against the
