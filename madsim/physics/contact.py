@@ -251,7 +251,7 @@ class ContactSolver:
             self._shapes.append(shape)
         self._id_keys = self._id_codes = np.zeros(0, dtype=np.int64)
         self.arrays_version = 0            # bumped when an array of respond_arrays() is replaced
-        self.narrow_version = 0            # bumped when slots or poses (narrow_table_arrays) are
+        self.narrow_version = 0            # bumped when slots or poses (narrow_table_arrays) change
         self._code_of: dict = {}
         self._member = np.zeros(n, dtype=bool)
         self._idle = np.zeros(n, dtype=np.int64)
