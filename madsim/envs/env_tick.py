@@ -10,8 +10,11 @@ order `MadrasCore.step` calls them
 one by one, so a step gives the same bits either way (tests/envs/test_env_tick.py). Whatever a
 stage cannot finish compiled stops the call at that stage and is done by `MadrasCore`'s Python
 path of the same stage, which then goes on: the messages of communication (`CommHub.send`),
-the traffic cars' controls (`TrafficFleet.act`), something near a car (the pymunk narrow phase,
-`World.finish_tick`), sensor noise, a reward or done written in Python. Action noise (drawn
+the traffic cars' controls (`TrafficFleet.act`), sensor noise, a reward or done written in
+Python, and the rare contact consultation that needs Python (`World.finish_tick`: a car entering
+or leaving the pymunk space, a buffer to grow); the usual one is compiled too
+(`world_tick.contact_direct`: pymunk's C functions called by address, `physics.pymunk_direct`;
+World.contact_pairs is then not refreshed, as after a tick without contact). Action noise (drawn
 from a numpy Generator) is added in Python, and that step's call starts at CONTROLS. (The SCR
 server's tick is built the same way: `madsim.net.server_tick`.)
 
@@ -32,8 +35,9 @@ from madsim.agents.traffic_kernel import traffic_tick
 from madsim.array_table import (address_table, b1_matrix, b1_vector, f4_matrix, f8_matrix,
                                 f8_tensor, f8_vector, i8_vector)
 from madsim.physics.sensors import SENSOR_TABLE, SN_FLAT, sense_table, sensor_table_arrays
-from madsim.physics.world_tick import (W_CAR, W_NEAR, W_RACE_POS, W_WALL, WORLD_TABLE, step_table,
-                                       world_table_arrays)
+from madsim.physics.pymunk_direct import NARROW_TABLE
+from madsim.physics.world_tick import (TICK_DONE, W_CAR, W_NEAR, W_RACE_POS, W_WALL, WORLD_TABLE,
+                                       contact_direct, step_table, world_table_arrays)
 
 ACTION, COMM, CONTROLS, TRAFFIC, STEP, SENSE, OUTCOME, NEXT, DONE = range(9)
 """A step's stages in order (ACTION and COMM once, then the tick's; NEXT: after the outcome, on
@@ -57,9 +61,11 @@ _OWN_FIRST = (("controls", "f8", 2, "C"), ("u_tick", "f8", 2, "C"), ("steps", "i
               ("traffic_rows", "i8", 1, "C"), ("traffic_kind", "i8", 1, "C"),
               ("traffic_s", "f8", 2, "C"), ("traffic_p", "f8", 2, "C"),
               ("traffic_lanes", "f8", 2, "C"), ("traffic_rand", "f8", 2, "C"))
-F_TRAFFIC, F_PLAIN, F_NSUB, F_FUEL, F_TOGETHER, F_COMM = range(6)
+F_TRAFFIC, F_PLAIN, F_NSUB, F_FUEL, F_TOGETHER, F_COMM, F_DIRECT, F_DAMAGE = range(8)
 """`flags`: traffic (NO_TRAFFIC...), no sensor noise, sub-steps per tick, fuel on, the first
-done ends every learner's step (server.episode_end "any"), communication (stop at COMM)."""
+done ends every learner's step (server.episode_end "any"), communication (stop at COMM),
+contact ticks finished in the call (`world_tick.contact_direct`: the World has a contact
+solver), damage on."""
 X_DT, X_LENGTH, X_HALF, X_RANGE = range(4)
 """`scalars`: sub-step (s), track length (m), half width (m), sensor range (m)."""
 ST_TICK, ST_RUNNING, ST_LEARNER, ST_ANSWER, ST_ENDED = range(5)
@@ -91,8 +97,9 @@ _LEARNER = (
 
 
 def table_spec(learners: int) -> tuple:
-    """`env_tick`'s address table spec for a step of `learners` learners."""
-    return _OWN_FIRST + WORLD_TABLE + SENSOR_TABLE + _LEARNER * learners
+    """`env_tick`'s address table spec for a step of `learners` learners (the contact
+    solver's `NARROW_TABLE` last, at row L0 + learners * NL)."""
+    return _OWN_FIRST + WORLD_TABLE + SENSOR_TABLE + _LEARNER * learners + NARROW_TABLE
 
 
 (U, U_TICK, STEPS, HITS, STATUS, FLAGS, SCALARS, LIVE, GOING, T_ROWS, T_KIND, T_S, T_P, T_LANES,
@@ -252,9 +259,18 @@ def env_tick(first, tick0, ticks, st, snap, t):
                 return TRAFFIC
         if stage <= STEP:
             steps = i8_vector(t, STEPS)
-            steps[0] = step_table(u, f8_matrix(t, U_TICK), nsub, st, snap, t, W0, dt, fuel_on, length)
-            if steps[0] < 0 or i8_vector(t, NEAR)[0] != 0:
+            u_tick = f8_matrix(t, U_TICK)
+            steps[0] = step_table(u, u_tick, nsub, st, snap, t, W0, dt, fuel_on, length)
+            if steps[0] < 0:
                 return STEP
+            if i8_vector(t, NEAR)[0] != 0:
+                if flags[F_DIRECT] == 0:
+                    return STEP
+                k_sub = contact_direct(steps[0], nsub, u_tick, st, snap, t, W0, L0 + m * NL, dt,
+                                       fuel_on, flags[F_DAMAGE] != 0)
+                if k_sub != TICK_DONE:
+                    steps[0] = k_sub
+                    return STEP
         if stage <= SENSE:
             if not sense_table(st, t, S0, race_pos, length, half_width, max_range, plain):
                 return SENSE                        # noise: Python finishes the frame
@@ -354,22 +370,29 @@ class EnvTick:
         self.fleet, self.traffic_rows = fleet, np.ascontiguousarray(traffic_rows, dtype=np.int64)
         traffic = (NO_TRAFFIC if self.traffic_rows.size == 0 else
                    COMPILED_TRAFFIC if fleet.compiled_only() else PYTHON_TRAFFIC)
-        self.flags = np.zeros(6, dtype=np.int64)
+        self.flags = np.zeros(8, dtype=np.int64)
         f = self.flags
         f[F_TRAFFIC], f[F_PLAIN], f[F_NSUB] = traffic, not suite.noisy, SUBSTEPS
         f[F_TOGETHER], f[F_COMM] = together, comm
+        f[F_DIRECT] = world.tick_args is not None and world.contact_active
+        f[F_DAMAGE] = world.damage_on
+        self._no_narrow = (np.zeros((1, 3), dtype=np.int64), np.zeros(1, dtype=np.int64),
+                           np.zeros(1, dtype=np.bool_), *(np.zeros(1, dtype=np.int64),) * 4,
+                           np.zeros(1), np.zeros(3, dtype=np.int64))
         self.scalars = np.zeros(4)
         self.spec = table_spec(self.m)
-        self._world_args = None
+        self._world_args = self._narrow_key = None
         self._set_args()
 
     def _set_args(self) -> None:
         """The address table of `env_tick`, built again when the World's arguments are a new
         tuple (its contact solver replaced an array)."""
         w = self.world.tick_args
-        if w is self._world_args:
+        narrow_key, narrow = (self.world.narrow_table() if self.flags[F_DIRECT]
+                              else (None, self._no_narrow))
+        if w is self._world_args and narrow_key == self._narrow_key:
             return
-        self._world_args = w
+        self._world_args, self._narrow_key = w, narrow_key
         _, _, _, half, _, _, _, _, max_range, *_ = self.suite.kernel_args()
         self.flags[F_FUEL] = w[8]
         x = self.scalars
@@ -390,6 +413,7 @@ class EnvTick:
                        ag.running, ag.track_length, sc.cur, sc.length, sc.collision, sc.r_vals,
                        sc.d_vals, ag.total, ag.terms, ag.ticks, ag.term, ag.trunc, ag.fired,
                        *self.builders[j].kernel_args(), self.obs[j]]
+        arrays += narrow
         self._arrays = arrays             # alive as long as the table is used
         self.args = (w[0], w[17], address_table(arrays, self.spec))     # state, snap, table
 
@@ -402,7 +426,8 @@ class EnvTick:
         """The STEP stage in Python: the pymunk narrow phase (or World.step's handling of a
         non-finite control), then the table again if the World replaced an array."""
         if self.steps[0] >= 0:
-            self.world.finish_tick(self.u_tick, SUBSTEPS, int(self.steps[0]))
+            self.world.finish_tick(self.u_tick, SUBSTEPS, int(self.steps[0]),
+                                   keep_pairs=bool(self.flags[F_DIRECT]))
         else:
             self.world.step(self.u)
         self._set_args()

@@ -5,7 +5,10 @@ velocities, which it changes in place (positions separated, velocities changed b
 and returns a `ContactReport` (per car: wall contact, car contact, damage added; car pairs).
 The World's tick takes the same steps without the report: its compiled stepper runs the broad
 phase, `ContactSolver.narrow` the pymunk step, and `world_tick.finish_contact` the response
-and the tick's bookkeeping (one Python call per sub-step where something is near).
+and the tick's bookkeeping (one Python call per sub-step where something is near). A
+consultation where no car enters or leaves the space calls chipmunk from compiled code
+(`pymunk_direct.narrow_direct`), and MadrasEnv's compiled step makes it without returning to
+Python at all (`world_tick.contact_direct`).
 
 1. Broad phase (compiled, no pymunk). Walls: per car a conservative clearance to the barrier
    lines and the pit walls (lateral extent of the box at the car's track position against the
@@ -93,6 +96,7 @@ import pymunk
 import pymunk.batch as pmb
 from pymunk._chipmunk_cffi import ffi as _ffi, lib as _lib
 
+from madsim.physics import pymunk_direct as _pd
 from madsim.physics.contact_kernels import (
     CAR_DAMAGE_PER_NS,
     CAR_YAW_MAX,
@@ -132,13 +136,19 @@ _ARB_FIELDS = (pmb.ArbiterFields.BODY_A_ID | pmb.ArbiterFields.BODY_B_ID | pmb.A
                | pmb.ArbiterFields.POINT_B_1 | pmb.ArbiterFields.DISTANCE_1
                | pmb.ArbiterFields.POINT_A_2 | pmb.ArbiterFields.POINT_B_2
                | pmb.ArbiterFields.DISTANCE_2)
-_ARB_INTS, _ARB_FLOATS = 3, 12    # per arbiter: (a id, b id, count), (normal, 2 x (pa, pb, dist))
+_ARB_INTS, _ARB_FLOATS = _pd.ARB_INTS, _pd.ARB_FLOATS   # per arbiter, see pymunk_direct
 # The narrow phase calls pymunk.batch's own C iterators with request structs made once per
 # solver (`_BatchIO`): what set_space_bodies / get_space_arbiters do, without a new struct, a
 # function look-up and two buffer objects per call.
 _SET_BODIES = _ffi.addressof(_lib, "pmSpaceBodySetIteratorFuncBatched")
 _GET_ARBITERS = _ffi.addressof(_lib, "pmSpaceArbiterIteratorFuncBatched")
 _F64, _I64 = np.dtype(np.float64), np.dtype(np.int64)
+_pd.check_layout(_ffi)
+_FN_ADDRESSES = {_pd.P_EACH_BODY: _pd.address(_ffi, _ffi.addressof(_lib, "cpSpaceEachBody")),
+                 _pd.P_STEP: _pd.address(_ffi, _ffi.addressof(_lib, "cpSpaceStep")),
+                 _pd.P_EACH_ARB: _pd.address(_ffi, _ffi.addressof(_lib, "cpSpaceEachCachedArbiter")),
+                 _pd.P_SET_FN: _pd.address(_ffi, _SET_BODIES),
+                 _pd.P_GET_FN: _pd.address(_ffi, _GET_ARBITERS)}
 
 JOIN_M = 0.01    # pit-wall quads whose edges meet this closely are one wall (float32 piece starts)
 
@@ -241,6 +251,7 @@ class ContactSolver:
             self._shapes.append(shape)
         self._id_keys = self._id_codes = np.zeros(0, dtype=np.int64)
         self.arrays_version = 0            # bumped when an array of respond_arrays() is replaced
+        self.narrow_version = 0            # bumped when slots or poses (narrow_table_arrays) change
         self._code_of: dict = {}
         self._member = np.zeros(n, dtype=bool)
         self._idle = np.zeros(n, dtype=np.int64)
@@ -251,6 +262,15 @@ class ContactSolver:
         self._set_req = _batch_request(_BODY_FIELDS, self._set_buf)
         self._arb_req = _batch_request(_ARB_FIELDS, self._arb_buf)
         self._arb_views = _arbiter_views(self._arb_req)
+        self._ptrs = _pd.empty_ptrs()      # addresses for `pymunk_direct.narrow_direct`
+        self.direct = np.zeros(3, dtype=np.int64)    # pymunk_direct.D_*
+        for k, a in _FN_ADDRESSES.items():
+            self._ptrs[k] = a
+        self._ptrs[_pd.P_SET_REQ] = _pd.address(_ffi, self._set_req)
+        self._ptrs[_pd.P_ARB_REQ] = _pd.address(_ffi, self._arb_req)
+        self._ptrs[_pd.P_SET_FLOATS] = _pd.address(_ffi, self._set_req.floatArray)
+        self._ptrs[_pd.P_ARB_INTS] = _pd.address(_ffi, self._arb_req.intArray)
+        self._ptrs[_pd.P_ARB_FLOATS] = _pd.address(_ffi, self._arb_req.floatArray)
         self._cp_space = None              # the held space's chipmunk pointer
         self._space_touched = False        # bodies added / removed since its last step
         self._slots = np.zeros(0, dtype=np.int64)    # car index per dynamic body, in space order
@@ -279,6 +299,7 @@ class ContactSolver:
             self._space, self._mat_bodies = None, []
         self._member[:] = False
         self._idle[:] = 0
+        self.direct[_pd.D_READY] = self.direct[_pd.D_NARROWED] = 0
         self._wall_cache[:, 3] = -1.0
         self._meta[:2] = 0
         self._slots = np.zeros(0, dtype=np.int64)
@@ -295,7 +316,9 @@ class ContactSolver:
     def stats(self) -> dict:
         """Counters since construction: resolve() calls, calls that consulted pymunk, pymunk
         steps, neighbour-list rebuilds."""
-        return dict(self._counts, list_rebuilds=int(self._meta[2]))
+        compiled = int(self.direct[_pd.D_CALLS])    # consultations from compiled code
+        return dict({k: v + compiled for k, v in self._counts.items()},
+                    list_rebuilds=int(self._meta[2]))
 
     @property
     def broad_phase_kernel(self):
@@ -385,6 +408,19 @@ class ContactSolver:
         self._counts["calls"] += 1
         return self._narrow(x, y, yaw, float(dt))
 
+    def narrow_table_arrays(self, contact_table: np.ndarray) -> tuple:
+        """The arrays of `pymunk_direct.NARROW_TABLE` after the caller's contact table (a
+        compiled tick's own consultations, `world_tick.contact_direct`). `slots` and `poses`
+        are replaced when a car enters or leaves the space: see `narrow_version`."""
+        return (contact_table, self._ptrs, self._member, self._idle, self._add, self._drop,
+                self._slots, self._poses, self.direct)
+
+    def arbiters_after_direct(self) -> tuple[np.ndarray, np.ndarray]:
+        """`narrow`'s answer for the consultation a compiled tick made and left to Python
+        (direct[D_NARROWED]; cleared here)."""
+        self.direct[_pd.D_NARROWED] = 0
+        return self._arbiters()
+
     def respond_arrays(self) -> tuple:
         """The solver's arrays `_respond_settle` reads and writes besides the poses and the
         broad phase's (id keys, id codes, material table, blocked, moved, travel, pair out);
@@ -396,6 +432,11 @@ class ContactSolver:
         self._counts["consults"] += 1
         if self._space is None:
             self._take_space()
+        elif not self._space_touched:  # the usual consultation: pymunk called from compiled code
+            if _pd.narrow_direct(self._ptrs, self._flags, self._member, self._idle, self._add,
+                                 self._drop, self._slots, x, y, yaw, self._poses, dt) >= 0:
+                self._counts["pymunk_steps"] += 1
+                return self._arbiters()
         n_add, n_drop = _membership_poses(self._flags, self._member, self._idle, self._add,
                                           self._drop, self._slots, x, y, yaw, self._poses)
         if n_add or n_drop:
@@ -409,11 +450,18 @@ class ContactSolver:
             self._space_touched = False
         else:
             _lib.cpSpaceStep(cp, dt)
+        self.direct[_pd.D_READY] = 1   # the body set stands until a car enters or leaves
         self._counts["pymunk_steps"] += 1
         req = self._arb_req
-        got_i, got_f = req.intArray, req.floatArray
-        got_i.num = got_f.num = 0
+        req.intArray.num = req.floatArray.num = 0
         _lib.cpSpaceEachCachedArbiter(cp, _GET_ARBITERS, req)
+        return self._arbiters()
+
+    def _arbiters(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arbiters pymunk.batch wrote into the get request's arrays (views of them), with
+        `_pair_out` grown to hold a response's pairs."""
+        req = self._arb_req
+        got_i, got_f = req.intArray, req.floatArray
         views = self._arb_views
         if got_i.max != views[0] or got_f.max != views[1]:        # pymunk grew its arrays
             views = self._arb_views = _arbiter_views(req)
@@ -429,7 +477,9 @@ class ContactSolver:
         """Hold a barrier space from the track's pool (built if none is free) until reset()."""
         self._space, self._mat_bodies = self._lease[0] = self._pool.take()
         self._cp_space = self._space._space
+        self._ptrs[_pd.P_SPACE] = _pd.address(_ffi, self._cp_space)
         self._space_touched = True
+        self.direct[_pd.D_READY] = 0
         n = self.n_cars
         keys = np.array([b.id for b in self._bodies] + [b.id for b in self._mat_bodies], dtype=np.int64)
         codes = np.concatenate([np.arange(n), -1 - np.arange(len(self._mat_bodies))]).astype(np.int64)
@@ -447,6 +497,7 @@ class ContactSolver:
         for i in self._drop[:n_drop]:
             self._space.remove(self._bodies[i], self._shapes[i])
         self._space_touched = True
+        self.direct[_pd.D_READY] = 0
         self._refresh_slots()
 
     def _refresh_slots(self) -> None:
@@ -457,6 +508,7 @@ class ContactSolver:
         self._slots = np.array([self._code_of[int(i)] for i in ids], dtype=np.int64)
         self._poses = np.zeros(3 * max(1, ids.size))   # static bodies keep pose (0, 0, 0)
         self._set_buf.set_float_buf(self._poses)
+        self.narrow_version += 1
 
 
 # --- set-up helpers (plain Python) ---------------------------------------------------------------

@@ -19,6 +19,7 @@ from madsim.cars.spec import CarSpec
 from madsim.facts import SUBSTEP_S, SUBSTEPS_PER_TICK, TICK_S
 from madsim.physics import kernel, suspension, world_tick
 from madsim.physics import layout as L
+from madsim.physics.pymunk_direct import D_NARROWED as _D_NARROWED
 from madsim.physics.tables import DAMAGE_SKILL, QUICKRACE_GRID, SKID, car_table, grid_positions, piece_table
 from madsim.tracks.track import Track
 
@@ -325,13 +326,15 @@ class World:
         u[bad] = 0.0
         return u
 
-    def finish_tick(self, u: np.ndarray, nsub: int, k: int) -> None:
+    def finish_tick(self, u: np.ndarray, nsub: int, k: int, keep_pairs: bool = False) -> None:
         """Complete a tick that the compiled stepper (`world_tick.step_world`, or the sub-step
         loop) left after sub-step k with something near (self._near[0] != 0): the pymunk narrow
         phase (`ContactSolver.narrow`), then `world_tick.finish_contact` responds and goes on to
         the next sub-step where something is near, until the tick is done (contact flags, pairs
         and damage of the tick, race positions). With nothing near (the usual tick) only the
-        pairs are cleared. u: the (N, 5) controls of the tick, already checked."""
+        pairs are cleared. u: the (N, 5) controls of the tick, already checked. keep_pairs: the
+        rest of a tick `world_tick.contact_direct` began (its pairs kept; with the solver's
+        direct[D_NARROWED] set, pymunk was already consulted at sub-step k)."""
         near = self._near
         if near[0] == 0:
             if self.contact_pairs:
@@ -339,7 +342,9 @@ class World:
             return
         solver, cols, piece = self._solver, self._contact_cols, self._piece_i
         walk = self._stepper is self._stepper_serial     # finish_contact runs the sub-steps
-        self._pair_count[0] = 0
+        if not keep_pairs:
+            self._pair_count[0] = 0
+        direct = solver.direct
         no_arbiters = self._no_arbiters
         while True:
             if near[0] < 0:                  # the pair list overflowed: grown, broad phase again
@@ -348,7 +353,10 @@ class World:
             ints, floats = no_arbiters
             respond = near[0] > 0
             if respond:
-                ints, floats = solver.narrow(cols[0], cols[1], cols[2], DT)
+                if direct[_D_NARROWED]:
+                    ints, floats = solver.arbiters_after_direct()
+                else:
+                    ints, floats = solver.narrow(cols[0], cols[1], cols[2], DT)
                 if (solver.arrays_version != self._contact_version
                         or self._pair_count[0] + solver.respond_arrays()[6].shape[0] > self._pairs_tick.shape[0]):
                     self._set_contact_table()
@@ -408,6 +416,14 @@ class World:
         self._contact_version = solver.arrays_version
         self._contact_arrays = (*arrays, *self._hits, *cols[3:6], self._pairs_tick, self._pair_count)
         self._contact_table = address_table(self._contact_arrays, world_tick.CONTACT_TABLE)
+
+    def narrow_table(self) -> tuple:
+        """(key, arrays): the arrays of `pymunk_direct.NARROW_TABLE` for a compiled tick that
+        consults pymunk itself (`world_tick.contact_direct`), and a key that changes whenever
+        one of them is replaced (the caller then builds its table again)."""
+        solver = self._solver
+        return ((id(self._contact_table), solver.narrow_version),
+                solver.narrow_table_arrays(self._contact_table))
 
     def _update_race_pos(self) -> None:
         world_tick.race_positions(self.state, self.race_pos)

@@ -14,6 +14,9 @@ import numpy as np
 from madsim.array_table import (b1_vector, f8_matrix, f8_vector, i1_vector, i8_matrix, i8_vector,
                                 readonly)
 from madsim.physics.contact_kernels import SNAP_COLUMNS, _respond_settle, advance_until_near
+from madsim.physics.pymunk_direct import (ARB_INTS, D_CALLS, D_NARROWED, D_READY, N_ADD, N_CTABLE,
+                                          N_DIRECT, N_DROP, N_IDLE, N_MEMBER, N_POSES, N_PTRS,
+                                          N_SLOTS, arbiter_floats, arbiter_ints, narrow_direct)
 from madsim.physics.kernel import add_damage, check_controls, refresh, tick_start
 from madsim.physics.layout import S_DIST, S_LAPS, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
 
@@ -180,6 +183,47 @@ def finish_contact(ints, floats, respond, k, nsub, u, st, snap, t, w0, c, dt, fu
     if n > 1:
         race_positions(st, i8_vector(t, w0 + W_RACE_POS))
     return TICK_DONE
+
+
+@numba.njit(cache=True, error_model="numpy")
+def contact_direct(k, nsub, u, st, snap, t, w0, n0, dt, fuel_on, damage_on):
+    """`World.finish_tick` in compiled code for a tick that `step_table` left after sub-step k
+    with something near: each consultation of pymunk from here (`pymunk_direct.narrow_direct`),
+    then `finish_contact` (response, sub-steps on to the next near one), until the tick is
+    done (returns TICK_DONE) or a consultation needs Python: a pair list to grow (near[0] < 0),
+    no held space or a changed body set (direct[D_READY] == 0), a car entering or leaving the
+    space, the tick's pairs or the response's pair buffer to grow. Then it returns the
+    sub-step k where World.finish_tick(..., keep_pairs=True) goes on (the tick's pairs so far
+    kept; with direct[D_NARROWED] set, pymunk was consulted there and its arbiters wait in the
+    get buffers). The calls, arguments and order are World.finish_tick's: bit-identical. World
+    arrays at rows w0.. of table t (`WORLD_TABLE`), the solver's at rows n0..
+    (`pymunk_direct.NARROW_TABLE`); u: the tick's controls."""
+    near = i8_vector(t, w0 + W_NEAR)
+    c = i8_matrix(t, n0 + N_CTABLE)
+    ptrs, direct = i8_vector(t, n0 + N_PTRS), i8_vector(t, n0 + N_DIRECT)
+    pair_out, tick_pairs = i8_matrix(c, C_PAIR_OUT), i8_matrix(c, C_PAIRS)
+    pair_count = i8_vector(c, C_PAIR_COUNT)
+    meta = i8_vector(t, w0 + W_BP_META)
+    x, y, yaw = f8_vector(t, w0 + W_X), f8_vector(t, w0 + W_Y), f8_vector(t, w0 + W_YAW)
+    pair_count[0] = 0
+    while True:
+        if (near[0] < 0 or direct[D_READY] == 0
+                or pair_count[0] + pair_out.shape[0] > tick_pairs.shape[0]):
+            return k
+        n_ints = narrow_direct(ptrs, i1_vector(t, w0 + W_BP_FLAGS), b1_vector(t, n0 + N_MEMBER),
+                               i8_vector(t, n0 + N_IDLE), i8_vector(t, n0 + N_ADD),
+                               i8_vector(t, n0 + N_DROP), i8_vector(t, n0 + N_SLOTS), x, y, yaw,
+                               f8_vector(t, n0 + N_POSES), dt)
+        if n_ints < 0:
+            return k
+        direct[D_CALLS] += 1
+        if n_ints // ARB_INTS + 4 * meta[1] + 1 > pair_out.shape[0]:
+            direct[D_NARROWED] = 1
+            return k
+        k = finish_contact(arbiter_ints(ptrs, n_ints), arbiter_floats(ptrs), True, k, nsub, u, st,
+                           snap, t, w0, c, dt, fuel_on, damage_on, True)
+        if k == TICK_DONE:
+            return TICK_DONE
 
 
 @numba.njit(cache=True, error_model="numpy")
