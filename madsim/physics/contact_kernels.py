@@ -31,6 +31,7 @@ PIT_WALL_DAMAGE_K = 2e-5    # pit walls: damage = CAR_DAMAGE_PER_NS x this x j^2
 MAT_PIT_WALL = -1           # "surface index" of the pit walls' material body
 PIT_CAP_COS = 0.7           # a pit-wall contact normal this close to the track direction is a cap's
 PIT_CAP_REACH_M = 0.5       # ... and is kept only this close to an end of the wall
+CORNER_ORDER = (3, 0, 2, 1)  # TORCS's corner order (FR, FL, RR, RL) as `_corner`'s k
 # Every hit adds its damage as a whole number of points, the fraction dropped (TORCS 1.3.7 adds
 # `(int)` of each barrier, pit-wall and car-car hit's damage: `_whole_points`). So a car
 # resting against a wall, which hits it at a few cm/s every step, gains no damage.
@@ -450,6 +451,60 @@ def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
 
 
 @numba.njit(cache=True)
+def _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar,
+                     prm, damage):
+    """TORCS's barrier rule once per corner of car i's box beyond the exact barrier line (1.3's
+    SimCarCollideXYScene): the corners in TORCS's order (front right, front left, rear right,
+    rear left); each corner's into-wall speed from the velocities the car had before any of
+    them (TORCS's corner velocities, set before the response), the lever arm of its friction
+    term from the centre as moved by the corners before it (each corner pushes the centre out
+    by its own depth), and the speed behind its damage from the velocity as the corners before
+    it left it; each corner's damage cut to whole points. A corner takes the material of the
+    barrier contact (records a..e of `order`) whose normal is nearest its own; a corner with
+    no barrier contact on its side (normals apart) is skipped. Returns the corners responded."""
+    v0x, v0y, w0 = vx[i], vy[i], w[i]
+    gx, gy = x[i], y[i]
+    done = 0
+    for t in range(4):
+        k = CORNER_ORDER[t]
+        cx, cy = _corner(x, y, yaw, cars, i, k)
+        excess, nx, ny = _point_excess(geo, bar, piece[i], cx, cy)
+        if excess <= 0.0:
+            continue
+        g, best = -1, 0.0
+        for b in range(a, e):
+            r = order[b]
+            if rk[r] != 0 or mat[ro[r], 3] != 0.0:
+                continue
+            dot = rf[r, 0] * nx + rf[r, 1] * ny
+            if dot > best:
+                g, best = r, dot
+        if g < 0:
+            continue
+        m = mat[ro[g]]
+        # into-wall speed of the corner from the velocities before the response
+        r0x, r0y = cx - x[i], cy - y[i]
+        vn = (v0x - w0 * r0y) * nx + (v0y + w0 * r0x) * ny
+        gx += nx * excess
+        gy += ny * excess
+        speed = max(1.0, math.sqrt(vx[i] * vx[i] + vy[i] * vy[i]))
+        vcn = vx[i] * nx + vy[i] * ny
+        cosa = vcn / speed
+        kf = m[0] * vn
+        vx[i] -= nx * kf
+        vy[i] -= ny * kf
+        w[i] -= (nx * (cx - gx) + ny * (cy - gy)) * kf / WALL_YAW_SCALE
+        w[i] = min(max(w[i], -WALL_YAW_MAX), WALL_YAW_MAX)
+        if vn < 0.0:
+            damage[i] += _whole_points(m[2] * (0.5 * (cosa * vcn) ** 2 + 0.005 * abs(1.0 - cosa) * speed)
+                                       * prm[P_SKILL])
+            vx[i] -= nx * vn * m[1]
+            vy[i] -= ny * vn * m[1]
+        done += 1
+    return done
+
+
+@numba.njit(cache=True)
 def _pit_cap_ok(geo, bar, hint, px, py, nx, ny):
     """False for a pit-wall contact at (px, py) whose normal (nx, ny) runs along the track
     (|n . t| > PIT_CAP_COS) with no end of that wall within PIT_CAP_REACH_M of the point: pymunk
@@ -587,7 +642,8 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
         while b > 0 and _rec_less(ri, rk, ro, rf, order[b], order[b - 1]):
             order[b], order[b - 1] = order[b - 1], order[b]
             b -= 1
-    # walls: per car, one response per wall direction at its deepest point
+    # walls: per car, the push out per wall direction at its deepest point; the barrier rule
+    # per corner beyond the line (TORCS), the pit-wall rule per direction at the deepest point
     used = np.zeros(nrec, dtype=np.bool_)
     a = 0
     while a < nrec:
@@ -599,6 +655,8 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
             a += 1
             continue
         pushx = pushy = 0.0
+        corners = _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, cars, mat,
+                                   geo, bar, prm, damage)
         while True:
             g = -1
             for b in range(a, e):
@@ -616,6 +674,10 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
                 pushx += need * rf[g, 0]
                 pushy += need * rf[g, 1]
             if mat[ro[g], 3] == 0.0:
+                if corners > 0:
+                    continue     # the barrier rule ran per corner
+                # no corner beyond the line (the box's side against a barrier that bulges
+                # into it): once at the deepest point
                 _wall_response(i, rf[g, 0], rf[g, 1], rf[g, 2], rf[g, 3], mat[ro[g]], x, y, vx, vy,
                                w, prm, damage)
             else:
