@@ -36,16 +36,21 @@ Python at all (`world_tick.contact_direct`).
    velocities, no bias), so no contact state carries over between calls.
 3. Response (compiled; TORCS rules, spec torcs-car-format.md 4.12), in a canonical order that
    does not depend on pymunk's internal order:
-   - wall, per car and per wall direction, at the deepest point of the car inside the wall:
-     position pushed out by the penetration (+ `SLOP_M`); with n = TORCS's barrier normal, the
-     track's lateral direction at that point (pointing away from the wall; pymunk's own normal
-     is not used: at a joint of the barrier polyline it can run along the track and brake a
-     scraping car by 10-35 m/s), vn = velocity of that point along n (< 0 = into it), p = the
-     point relative to the CG: `v -= n vn k_friction`, `r -= (n . p) vn k_friction / 10` (|r|
-     <= 6 rad/s), and when vn < 0 damage `k_damage (0.5 (c v.n)^2 + 0.005 |1 - c| V) x skill` (V =
-     max(1, |v|), c = v.n / V) and `v -= n vn rebound`. So the into-wall speed is multiplied
-     by (1 - k_friction - rebound) per contact step (0.5 for TORCS's barrier: friction 0,
-     rebound 0.5; TORCS's "friction" damps the normal speed) and the tangential speed is kept.
+   - wall, as TORCS's SimCarCollideXYScene: once per corner of the car's box beyond the
+     barrier line, in TORCS's corner order (`contact_kernels._barrier_corners`; docs/physics.md,
+     "Once per corner"); the position is pushed out once per wall direction by the deepest
+     penetration (+ `SLOP_M`). With n = TORCS's barrier normal, the track's lateral direction
+     at the corner (pointing away from the wall; pymunk's own normal is not used: at a joint of
+     the barrier polyline it can run along the track and brake a scraping car by 10-35 m/s),
+     vn = the corner's velocity along n before the response (< 0 = into it), p = the corner
+     relative to the CG: `v -= n vn k_friction`, `r -= (n . p) vn k_friction / 10` (|r| <= 6
+     rad/s), and when vn < 0 damage `k_damage (0.5 (c v.n)^2 + 0.005 |1 - c| V) x skill` (V =
+     max(1, |v|), c = v.n / V, whole points per corner) and `v -= n vn rebound`. So each corner
+     in the wall takes (k_friction + rebound) of the into-wall speed (0.5 for TORCS's barrier:
+     friction 0, rebound 0.5; TORCS's "friction" damps the normal speed: a nose-first hit with
+     two corners in stops there) and the tangential speed is kept. A barrier contact with no
+     corner beyond the line (a side against a bulging barrier) gets one response at its
+     deepest point.
    - pit walls, the same way per direction and deepest point (a contact whose normal runs
      along the track away from the wall's ends is a seam between two of its segments: dropped),
      but TORCS's pit-wall rule: when
