@@ -38,19 +38,21 @@ Python at all (`world_tick.contact_direct`).
    does not depend on pymunk's internal order:
    - wall, as TORCS's SimCarCollideXYScene: once per corner of the car's box beyond the
      barrier line, in TORCS's corner order (`contact_kernels._barrier_corners`; docs/physics.md,
-     "Once per corner"); the position is pushed out once per wall direction by the deepest
-     penetration (+ `SLOP_M`). With n = TORCS's barrier normal, the track's lateral direction
-     at the corner (pointing away from the wall; pymunk's own normal is not used: at a joint of
+     "Once per corner", "Where TORCS looks"), tested where TORCS tests it: the box at the start
+     of the sub-step (moved back by the velocities x 0.002 s; a box that only the sub-step's
+     move put beyond the line is answered at the next sub-step), the centre pushed in by each
+     such corner's own depth (no slop). With n = TORCS's barrier normal, the track's lateral
+     direction at the corner (pointing away from the wall; pymunk's own normal is not used: at a joint of
      the barrier polyline it can run along the track and brake a scraping car by 10-35 m/s),
      vn = the corner's velocity along n before the response (< 0 = into it), p = the corner
-     relative to the CG: `v -= n vn k_friction`, `r -= (n . p) vn k_friction / 10` (|r| <= 6
+     relative to the pushed CG: `v -= n vn k_friction`, `r -= (n . p) vn k_friction / 10` (|r| <= 6
      rad/s), and when vn < 0 damage `k_damage (0.5 (c v.n)^2 + 0.005 |1 - c| V) x skill` (V =
      max(1, |v|), c = v.n / V, whole points per corner) and `v -= n vn rebound`. So each corner
      in the wall takes (k_friction + rebound) of the into-wall speed (0.5 for TORCS's barrier:
      friction 0, rebound 0.5; TORCS's "friction" damps the normal speed: a nose-first hit with
      two corners in stops there) and the tangential speed is kept. A barrier contact with no
-     corner beyond the line (a side against a bulging barrier) gets one response at its
-     deepest point.
+     corner beyond the line before or after the move (a side against a bulging barrier) gets
+     one response at its deepest point, pushed out by that depth (+ `SLOP_M`).
    - pit walls, the same way per direction and deepest point (a contact whose normal runs
      along the track away from the wall's ends is a seam between two of its segments: dropped),
      but TORCS's pit-wall rule: when
@@ -65,7 +67,8 @@ Python at all (`world_tick.contact_direct`).
      pushed stays).
    Then position-only passes (compiled, exact tests, up to `SETTLE_ITERS`): moved boxes that
    still overlap are separated along their smallest-overlap axis, and every car near a barrier
-   or moved is projected until its four corners are inside the exact barrier lines.
+   or moved with a corner more than `BACKSTOP_M` beyond an exact barrier line is projected
+   until its four corners are inside (TORCS lets a box ride in the wall by a step's motion).
 
 Why pymunk detects but does not respond: TORCS's wall rule is not a restitution law (the car
 keeps moving into the wall at half speed and the position push stops it; pymunk's elasticity e
@@ -348,7 +351,9 @@ class ContactSolver:
     def resolve(self, x, y, yaw, vx, vy, yaw_rate, piece, dt) -> ContactReport:
         """Find and resolve contacts after one sub-step. x, y, yaw, vx, vy (global frame),
         yaw_rate: (N,) float64 arrays, changed in place; piece: (N,) int64 track piece of each
-        car (a hint, not changed); dt: the sub-step, s."""
+        car (a hint, not changed); dt: the sub-step, s (the barrier rule takes the box at the
+        start of the sub-step as the pose moved back by the velocities x `SUBSTEP_S`, 0.002 s,
+        the sub-step World and WorldBatch use, whatever dt is)."""
         shape = self._shape
         try:   # one chained test: this runs 500 times per simulated second
             ok = (x.shape == y.shape == yaw.shape == vx.shape == vy.shape == yaw_rate.shape

@@ -15,6 +15,7 @@ import numpy as np
 
 from madsim.physics.kernel import NO_REFCOUNT, YAW_RATE_MAX, advance_car
 from madsim.physics.layout import CONTROL_COLUMNS, N_STATE, S_PIECE, S_R, S_VXG, S_VYG, S_X, S_Y, S_YAW
+from madsim.facts import SUBSTEP_S
 from madsim.tracks.kernels import GEO_A0, GEO_KIND, GEO_LEN, GEO_R, GEO_S0, locate_from
 
 # --- TORCS response constants (spec torcs-car-format.md 4.12) ---------------------------------
@@ -38,6 +39,7 @@ CORNER_ORDER = (3, 0, 2, 1)  # TORCS's corner order (FR, FL, RR, RL) as `_corner
 
 # --- solver tuning ----------------------------------------------------------------------------
 SLOP_M = 1e-3               # extra separation beyond the measured penetration
+BACKSTOP_M = 0.5            # settling pushes a box back inside only when a corner is this far out
 MIN_RADIUS_M = 0.5          # inner barrier radii are taken as at least this
 LEVEL_STRETCH_MAX = 20.0    # cars closer than (rad_i + rad_j) x this along the track are on one level
 OTHER_LEVEL_M = 0.1         # a wall contact whose car point is this far inside its own barrier
@@ -453,21 +455,29 @@ def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
 @numba.njit(cache=True)
 def _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, cars, mat, geo, bar,
                      prm, damage):
-    """TORCS's barrier rule once per corner of car i's box beyond the exact barrier line (1.3's
-    SimCarCollideXYScene): the corners in TORCS's order (front right, front left, rear right,
-    rear left); each corner's into-wall speed from the velocities the car had before any of
-    them (TORCS's corner velocities, set before the response), the lever arm of its friction
-    term from the centre as moved by the corners before it (each corner pushes the centre out
-    by its own depth), and the speed behind its damage from the velocity as the corners before
-    it left it; each corner's damage cut to whole points. A corner takes the material of the
-    barrier contact (records a..e of `order`) whose normal is nearest its own; a corner with
-    no barrier contact on its side (normals apart) is skipped. Returns the corners responded."""
+    """TORCS's barrier rule once per corner of car i's box beyond the exact barrier line, where
+    TORCS 1.3's SimCarCollideXYScene looks: at the box as it was at the start of the sub-step
+    (SimCarUpdateCornerPos runs after the velocities are updated but before SimCarUpdatePos
+    moves the car), i.e. the box moved back by this sub-step's velocities x SUBSTEP_S. The
+    corners in TORCS's order (front right, front left, rear right, rear left); each corner's
+    into-wall speed from the new velocities at that start-of-step corner (the same for every
+    corner of the step), the centre (as moved) pushed out by each corner's own depth in turn,
+    the lever arm of the friction term from the start-of-step corner to that pushed centre,
+    and the speed behind the damage from the velocity as the corners before it left it; each
+    corner's damage cut to whole points. A corner takes the material of the barrier contact
+    (records a..e of `order`) whose normal is nearest its own; a corner with no barrier
+    contact on its side (normals apart) is skipped. Returns the corners responded."""
     v0x, v0y, w0 = vx[i], vy[i], w[i]
+    sx, sy, syaw = x[i] - v0x * SUBSTEP_S, y[i] - v0y * SUBSTEP_S, yaw[i] - w0 * SUBSTEP_S
+    c, s = math.cos(syaw), math.sin(syaw)
     gx, gy = x[i], y[i]
     done = 0
     for t in range(4):
         k = CORNER_ORDER[t]
-        cx, cy = _corner(x, y, yaw, cars, i, k)
+        lx = (1.0 if k == 0 or k == 3 else -1.0) * cars[i, C_HL]
+        ly = (1.0 if k < 2 else -1.0) * cars[i, C_HW]
+        r0x, r0y = lx * c - ly * s, lx * s + ly * c
+        cx, cy = sx + r0x, sy + r0y
         excess, nx, ny = _point_excess(geo, bar, piece[i], cx, cy)
         if excess <= 0.0:
             continue
@@ -482,8 +492,7 @@ def _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, ca
         if g < 0:
             continue
         m = mat[ro[g]]
-        # into-wall speed of the corner from the velocities before the response
-        r0x, r0y = cx - x[i], cy - y[i]
+        # into-wall speed of the start-of-step corner from the velocities before the response
         vn = (v0x - w0 * r0y) * nx + (v0y + w0 * r0x) * ny
         gx += nx * excess
         gy += ny * excess
@@ -501,7 +510,17 @@ def _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, ca
             vx[i] -= nx * vn * m[1]
             vy[i] -= ny * vn * m[1]
         done += 1
+    x[i], y[i] = gx, gy
     return done
+
+
+@numba.njit(cache=True)
+def _any_corner_beyond(geo, bar, x, y, yaw, piece, cars, i):
+    """Whether a corner of car i's box (as it is) is beyond the exact barrier line."""
+    for k in range(4):
+        if _corner_excess(geo, bar, x, y, yaw, piece, cars, i, k)[0] > 0.0:
+            return True
+    return False
 
 
 @numba.njit(cache=True)
@@ -642,8 +661,9 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
         while b > 0 and _rec_less(ri, rk, ro, rf, order[b], order[b - 1]):
             order[b], order[b - 1] = order[b - 1], order[b]
             b -= 1
-    # walls: per car, the push out per wall direction at its deepest point; the barrier rule
-    # per corner beyond the line (TORCS), the pit-wall rule per direction at the deepest point
+    # walls: per car, the barrier rule per corner of the start-of-step box beyond the line,
+    # each pushing the centre in by its depth (TORCS); the pit-wall rule (and the barrier rule
+    # where no corner is beyond the line) per direction at its deepest point, pushed out by it
     used = np.zeros(nrec, dtype=np.bool_)
     a = 0
     while a < nrec:
@@ -657,6 +677,7 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
         pushx = pushy = 0.0
         corners = _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, cars, mat,
                                    geo, bar, prm, damage)
+        beyond = corners == 0 and _any_corner_beyond(geo, bar, x, y, yaw, piece, cars, i)
         while True:
             g = -1
             for b in range(a, e):
@@ -669,13 +690,15 @@ def _respond(ints, floats, keys, codes, x, y, yaw, vx, vy, w, piece, cars, mat, 
                 r = order[b]
                 if rf[r, 0] * rf[g, 0] + rf[r, 1] * rf[g, 1] > 0.9:
                     used[r] = True
+            if mat[ro[g], 3] == 0.0 and (corners > 0 or beyond):
+                continue         # pushed out by the corners' own depths (or not yet, as TORCS)
             need = rf[g, 4] - (pushx * rf[g, 0] + pushy * rf[g, 1])
             if need > 0.0:
                 pushx += need * rf[g, 0]
                 pushy += need * rf[g, 1]
             if mat[ro[g], 3] == 0.0:
-                if corners > 0:
-                    continue     # the barrier rule ran per corner
+                if corners > 0 or beyond:
+                    continue     # the barrier rule ran per corner, or runs at the next sub-step
                 # no corner beyond the line (the box's side against a barrier that bulges
                 # into it): once at the deepest point
                 _wall_response(i, rf[g, 0], rf[g, 1], rf[g, 2], rf[g, 3], mat[ro[g]], x, y, vx, vy,
@@ -777,8 +800,10 @@ def _add_pair(pair_out, count, i, j):
 
 @numba.njit(cache=True)
 def _push_inside(i, x, y, yaw, piece, cars, geo, bar):
-    """Move car i so that its four corners are inside the exact barrier lines (TORCS's corner
-    test), along the inward normal at the worst corner. Returns True if it moved."""
+    """If a corner of car i is more than BACKSTOP_M beyond an exact barrier line, move the car
+    so that its four corners are inside them, along the inward normal at the worst corner
+    (a backstop: TORCS's barrier rule leaves a box in the wall by about one step's motion and
+    answers it at the next step, `_barrier_corners`). Returns True if it moved."""
     pushed = False
     for _ in range(3):
         worst, wx, wy = 0.0, 0.0, 0.0
@@ -786,7 +811,7 @@ def _push_inside(i, x, y, yaw, piece, cars, geo, bar):
             e, nx, ny = _corner_excess(geo, bar, x, y, yaw, piece, cars, i, k)
             if e > worst:
                 worst, wx, wy = e, nx, ny
-        if worst <= 0.0:
+        if worst <= (0.0 if pushed else BACKSTOP_M):
             break
         x[i] += wx * (worst + SLOP_M)
         y[i] += wy * (worst + SLOP_M)
@@ -798,7 +823,8 @@ def _push_inside(i, x, y, yaw, piece, cars, geo, bar):
 def _settle(x, y, yaw, piece, cars, geo, bar, prm, pairs, meta, flags, slack, wall, car, blocked,
             moved, travel, pair_out, count):
     """Position-only relaxation after the pymunk contacts, with exact tests: corners of cars
-    near a barrier, or moved further than their clearance allows, inside the barrier lines;
+    near a barrier, or moved further than their clearance allows, back inside the barrier
+    lines when more than BACKSTOP_M beyond (`_push_inside`);
     boxes of moved cars not overlapping (pushed apart along the smallest-overlap axis).
     Returns the updated pair count."""
     n = x.shape[0]
