@@ -431,25 +431,34 @@ def _whole_points(dmg):
     return np.floor(dmg)
 
 
-@numba.njit(cache=True)
-def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
-    """TORCS barrier rule (car spec 4.12 steps 2-6) for car i at point (px, py), wall normal
-    (nx, ny) pointing away from the wall, material row `mat` = (friction, rebound, dammage)."""
-    rx, ry = px - x[i], py - y[i]
-    vn = (vx[i] - w[i] * ry) * nx + (vy[i] + w[i] * rx) * ny
+@numba.njit(cache=True, inline="always")
+def _barrier_rule(i, nx, ny, vn, lx, ly, mat, vx, vy, w, prm, damage):
+    """TORCS barrier rule (car spec 4.12 steps 2-6) for car i: wall normal (nx, ny) pointing away
+    from the wall, vn the hit point's speed along it (< 0: into the wall), (lx, ly) the friction
+    term's lever (the point from the centre), material row `mat` = (friction, rebound,
+    dammage). The speed behind the damage is the car's velocity as it is."""
     speed = max(1.0, math.sqrt(vx[i] * vx[i] + vy[i] * vy[i]))
     vcn = vx[i] * nx + vy[i] * ny
     cosa = vcn / speed
     kf = mat[0] * vn
     vx[i] -= nx * kf
     vy[i] -= ny * kf
-    w[i] -= (nx * rx + ny * ry) * kf / WALL_YAW_SCALE
+    w[i] -= (nx * lx + ny * ly) * kf / WALL_YAW_SCALE
     w[i] = min(max(w[i], -WALL_YAW_MAX), WALL_YAW_MAX)
     if vn < 0.0:
         damage[i] += _whole_points(mat[2] * (0.5 * (cosa * vcn) ** 2 + 0.005 * abs(1.0 - cosa) * speed)
                                    * prm[P_SKILL])
         vx[i] -= nx * vn * mat[1]
         vy[i] -= ny * vn * mat[1]
+
+
+@numba.njit(cache=True)
+def _wall_response(i, nx, ny, px, py, mat, x, y, vx, vy, w, prm, damage):
+    """TORCS barrier rule once for car i at point (px, py) (`_barrier_rule`: the point's speed
+    along the normal from the car's velocities as they are)."""
+    rx, ry = px - x[i], py - y[i]
+    vn = (vx[i] - w[i] * ry) * nx + (vy[i] + w[i] * rx) * ny
+    _barrier_rule(i, nx, ny, vn, rx, ry, mat, vx, vy, w, prm, damage)
 
 
 @numba.njit(cache=True)
@@ -496,19 +505,7 @@ def _barrier_corners(i, a, e, order, rk, ro, rf, x, y, yaw, vx, vy, w, piece, ca
         vn = (v0x - w0 * r0y) * nx + (v0y + w0 * r0x) * ny
         gx += nx * excess
         gy += ny * excess
-        speed = max(1.0, math.sqrt(vx[i] * vx[i] + vy[i] * vy[i]))
-        vcn = vx[i] * nx + vy[i] * ny
-        cosa = vcn / speed
-        kf = m[0] * vn
-        vx[i] -= nx * kf
-        vy[i] -= ny * kf
-        w[i] -= (nx * (cx - gx) + ny * (cy - gy)) * kf / WALL_YAW_SCALE
-        w[i] = min(max(w[i], -WALL_YAW_MAX), WALL_YAW_MAX)
-        if vn < 0.0:
-            damage[i] += _whole_points(m[2] * (0.5 * (cosa * vcn) ** 2 + 0.005 * abs(1.0 - cosa) * speed)
-                                       * prm[P_SKILL])
-            vx[i] -= nx * vn * m[1]
-            vy[i] -= ny * vn * m[1]
+        _barrier_rule(i, nx, ny, vn, cx - gx, cy - gy, m, vx, vy, w, prm, damage)
         done += 1
     x[i], y[i] = gx, gy
     return done
