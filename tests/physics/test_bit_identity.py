@@ -34,6 +34,11 @@ Then (issue 12, session 10) bottoming, TORCS's SimCarCollideZ (`suspension.groun
 scenario's wheel reaches its packers, all six kept their bits (tests/physics/test_bottoming.py
 and the dirt-2 trace test cover the rule).
 
+Then (issue 12, session 15) TORCS's barrier rule once per corner, tested on the box at the start
+of the step (contact_kernels._barrier_corners): no scenario above reaches a barrier, so
+`barrier` was added, recorded from that kernel: two cars steered into the walls of a 5 m street
+at full throttle, hitting and then scraping them (each takes damage: asserted).
+
 Each scenario hashes (sha256) the full float64 state array after its ticks (and, for the envs,
 every observation and reward on the way). The expected digests were printed by this file's
 `_digests()` run with PYTHONPATH pointing at that kernel (`python
@@ -64,6 +69,7 @@ EXPECTED = {
     "vec_traffic": "c8414e136d35e8e1fb94abd7be8c468e99d31ca8db2bc4d9fd085a48d6e1ebbd",
     "env_ts": "d34969b88b212353121c5b634e664601b482bee0684fbffdafc5f28366bc1f85",
     "rough_track": "2bbd0cadf966d09e65cbc162870ee08f203b434e13028ccede668817f84bfe6f",
+    "barrier": "da46fea735074aa7a42198bb5dd516e44606a30dd5d336e11fa9a540d24d8cfd",
 }
 
 
@@ -102,6 +108,20 @@ def rough_track() -> str:
         u[:, 1] = np.clip((25.0 - w.vx) / 3.0, 0, 1)
         u[:, 3] = 2.0 if t < 100 else 3.0
         w.step(u)
+    return _hash(w.state)
+
+
+def barrier() -> str:
+    """Two cars steered into the walls of madsim-street (5 m wide) at full throttle: a hit at
+    18 / 25 m/s, then a scrape along each wall (TORCS's barrier rule, corner by corner)."""
+    from madsim.physics import layout as L
+    w = World(load_track("madsim-street"), [load_car("madsim-sedan"), load_car("madsim-gt")],
+              np.random.default_rng(0))
+    w.reset(np.array([[20.0, 1.0, 18.0], [60.0, -1.0, 25.0]]), gears=3)
+    u = np.array([[0.6, 1.0, 0.0, 3.0, 0.0], [-0.8, 1.0, 0.0, 3.0, 0.0]])
+    for _ in range(250):
+        w.step(u)
+    assert np.all(w.state[:, L.S["damage"]] > 0.0), "both cars must reach a wall"
     return _hash(w.state)
 
 
@@ -167,7 +187,7 @@ def env_ts() -> str:
 
 
 SCENARIOS = {"one_car": one_car, "rough_track": rough_track, "six_contact": six_contact, "four_wd": four_wd,
-             "vec_traffic": vec_traffic, "env_ts": env_ts}
+             "vec_traffic": vec_traffic, "env_ts": env_ts, "barrier": barrier}
 
 
 @pytest.mark.parametrize("name", list(SCENARIOS))
