@@ -41,6 +41,7 @@ from madsim.physics.schedule import make_clock
 from madsim.net.server_tick import DECODE, DONE, SENSE, STEP, ServerTick
 from madsim.net.sync_loop import LIMIT, PENDING, STALE, SUPPORTED, TICK, SyncLoop
 from madsim.physics.sensors import SensorFrame, SensorSuite
+from madsim.physics.world import World
 
 MODES = ("sync", "timeout", "realtime")
 RECV_BYTES = 65536   # receive buffer per car: any UDP datagram fits (decoding reads 1000 bytes)
@@ -646,7 +647,8 @@ def warm_up(world, noisy: bool = False) -> None:
     """Run, once, every compiled kernel a race calls, on a throwaway `world` (N cars): the
     server's compiled tick and each stage's Python path (focus reading, noise, countdown, a
     datagram in no stock layout), the World's own step, the contact solver's narrow phase and
-    response (car 0 is put on its barrier), the codec. Numba loads them from its disk cache (or
+    response (car 0 is put on its barrier; then two cars press against each other, so that a
+    consultation runs from compiled code as most of a race's do), the codec. Numba loads them from its disk cache (or
     compiles them) now, before any client identifies, so no tick of the race waits for them (a
     first contact would otherwise stall the race for a cache load, or a compile on a fresh
     install)."""
@@ -671,6 +673,14 @@ def warm_up(world, noisy: bool = False) -> None:
     if SUPPORTED:
         SyncLoop([-1] * n, [("127.0.0.1", 0)] * n, race, 10).run(0)   # the sync loop, loaded only
     world.step(race.u)          # and the in-process doors' own path, a focus reading due
+    # two cars side by side steering into each other for three ticks: a consultation of pymunk
+    # with the body set unchanged since the last one runs from compiled code
+    # (`pymunk_direct.narrow_direct`)
+    pair = World(world.track, [world.cars[0]] * 2, np.random.default_rng(0))
+    middle = world.track.length / 2
+    pair.reset(np.array([[middle, 0.9, 10.0], [middle, -0.9, 10.0]]))
+    for _ in range(3):
+        pair.step(np.array([[-1.0, 0.5, 0.0, 1.0, 0.0], [1.0, 0.5, 0.0, 1.0, 0.0]]))
     P.encode_sensor_rows(SensorSuite(world, noisy=noisy, rng=np.random.default_rng(0)).frame().flat)
     P.decode_controls_into(answers[0], np.zeros(8))
 

@@ -83,6 +83,8 @@ def test_a_fresh_process_loads_every_race_kernel_from_the_disk_cache():
     # the kernels that used to be compiled per process are among the cache hits
     assert "madsim.physics.world_tick.finish_contact" in found["hits"]   # the contact path's
     assert "madsim.net.server_tick.server_tick" in found["hits"]
+    # and the narrow phase's consultation from compiled code, which most of a race's are
+    assert "madsim.physics.pymunk_direct.narrow_direct" in found["hits"]
 
 
 def test_warm_up_leaves_the_world_it_is_given_only():
